@@ -1,0 +1,431 @@
+"""The Gymnasium environment of the SO-101 arm: a thin adapter over physics and task."""
+
+from __future__ import annotations
+
+import math
+import numbers
+import warnings
+from collections import OrderedDict
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from dm_control.rl import control
+from gymnasium import spaces
+
+from gym_soarm import constants
+from gym_soarm.physics import SoArmPhysics
+from gym_soarm.rendering import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE, RENDER_QUALITIES, CameraRenderer
+from gym_soarm.tasks import TASKS, SoArmTask
+
+OBS_TYPES = ("pixels", "pixels_agent_pos", "environment_state_agent_pos")
+REWARD_TYPES = ("dense", "sparse")
+RESET_OPTION_KEYS = ("cube_grid_position", "cube_rotation_deg")
+ENVIRONMENT_STATE_LAYOUT: tuple[tuple[str, int], ...] = (
+    ("cube_pos", 3),
+    ("cube_quat_wxyz", 4),
+    ("gripper_pos", 3),
+    ("goal_pos", 3),
+)
+ENVIRONMENT_STATE_SIZE = sum(n for _, n in ENVIRONMENT_STATE_LAYOUT)
+# Positions stay within a few metres of the table (the floor is 0.75 m below it);
+# quaternion components are within [-1, 1].
+_POSITION_BOUND_M = 5.0
+ENVIRONMENT_STATE_HIGH = np.concatenate(
+    [np.full(3, _POSITION_BOUND_M), np.ones(4), np.full(6, _POSITION_BOUND_M)]
+)
+ENVIRONMENT_STATE_LOW = -ENVIRONMENT_STATE_HIGH
+
+
+def _choices(values: Sequence[Any]) -> str:
+    return ", ".join(repr(v) for v in values)
+
+
+def _check_choice(name: str, value: Any, valid: Sequence[Any]) -> None:
+    if not isinstance(value, str) or value not in valid:
+        raise ValueError(f"{name} must be one of {_choices(valid)}; got {value!r}.")
+
+
+def _check_image_size(name: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise ValueError(
+            f"{name} must be an int from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels; got {value!r}."
+        )
+    if not MIN_IMAGE_SIZE <= int(value) <= MAX_IMAGE_SIZE:
+        raise ValueError(
+            f"{name} must be from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels; got {value!r}."
+        )
+    return int(value)
+
+
+def resolve_camera_config(camera_config: str | Sequence[str]) -> tuple[str, ...]:
+    """Cameras named by a camera config, in the fixed order overview, front, wrist."""
+    if isinstance(camera_config, str):
+        if camera_config not in constants.CAMERA_CONFIGS:
+            raise ValueError(
+                f"camera_config must be one of {_choices(constants.CAMERA_CONFIGS)} or a sequence "
+                f"of camera names from {_choices(constants.CAMERA_NAMES)}; got {camera_config!r}."
+            )
+        return constants.CAMERA_CONFIGS[camera_config]
+    if not isinstance(camera_config, Sequence) or not camera_config:
+        raise ValueError(
+            f"camera_config must be one of {_choices(constants.CAMERA_CONFIGS)} or a non-empty "
+            f"sequence of camera names from {_choices(constants.CAMERA_NAMES)}; got {camera_config!r}."
+        )
+    unknown = [c for c in camera_config if c not in constants.CAMERA_NAMES]
+    if unknown:
+        raise ValueError(
+            f"camera_config names unknown cameras: got {unknown!r}; valid cameras are "
+            f"{_choices(constants.CAMERA_NAMES)}."
+        )
+    return tuple(c for c in constants.CAMERA_NAMES if c in camera_config)
+
+
+class SoArmEnv(gym.Env):
+    """SO-ARM101 cube manipulation on a table, on MuJoCo through dm_control.
+
+    The arm stands at (0, 0.15, 0) facing +y across a 64 x 45 cm table; a 3 cm blue
+    cube starts on one of nine grid cells with a yaw from {0, 30, 45, 60} degrees.
+
+    **Actions** ``Box((6,), float32)``: absolute servo targets in radians, in the
+    order of the table below; values outside the bounds are clipped.
+
+    ===  ===============  ==================  =====
+    idx  joint/actuator   range (rad)         note
+    ===  ===============  ==================  =====
+    0    shoulder_pan     -1.91986 .. 1.91986
+    1    shoulder_lift    -1.74533 .. 1.74533
+    2    elbow_flex       -1.69 .. 1.69
+    3    wrist_flex       -1.65806 .. 1.65806
+    4    wrist_roll       -2.74385 .. 2.84121
+    5    gripper          -0.17453 .. 1.74533  closes towards the lower bound
+    ===  ===============  ==================  =====
+
+    **Observations** by ``obs_type``:
+
+    * ``"pixels"``: ``{camera: uint8 (H, W, 3)}`` for the configured cameras.
+    * ``"pixels_agent_pos"`` (default): ``{"pixels": {...}, "agent_pos": float64 (6,)}``.
+    * ``"environment_state_agent_pos"``: ``{"agent_pos": (6,), "environment_state": (13,)}``
+      where ``environment_state`` is cube position (3, m), cube quaternion (w, x, y, z),
+      ``gripperframe`` site position (3, m) and goal position (3, m). Renders nothing.
+
+    ``agent_pos`` holds the six joint positions in radians, the units of the action.
+
+    Args:
+        task: ``"pick_and_place"`` or ``"lift"``.
+        obs_type: one of :data:`OBS_TYPES`.
+        camera_config: ``"front_only"``, ``"front_wrist"``, ``"all"`` or camera names.
+        observation_height: image height in pixels (16 to 2048).
+        observation_width: image width in pixels (16 to 2048).
+        render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
+        render_camera: camera returned by ``render()`` in ``rgb_array`` mode.
+        render_quality: ``"fast"`` (no shadows, reflections or multisampling) or
+            ``"high"`` (shadows and 4x multisampling).
+        reward_type: ``"dense"`` (weighted named terms in [0, 1]) or ``"sparse"``.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": constants.RENDER_FPS}
+
+    def __init__(
+        self,
+        task: str = "pick_and_place",
+        obs_type: str = "pixels_agent_pos",
+        camera_config: str | Sequence[str] = constants.DEFAULT_CAMERA_CONFIG,
+        observation_height: int = 480,
+        observation_width: int = 640,
+        render_mode: str | None = None,
+        render_camera: str = constants.DEFAULT_RENDER_CAMERA,
+        render_quality: str = "fast",
+        reward_type: str = "dense",
+    ) -> None:
+        # Validate every argument before building anything.
+        _check_choice("task", task, tuple(TASKS))
+        _check_choice("obs_type", obs_type, OBS_TYPES)
+        cameras = resolve_camera_config(camera_config)
+        height = _check_image_size("observation_height", observation_height)
+        width = _check_image_size("observation_width", observation_width)
+        if render_mode is not None:
+            _check_choice("render_mode", render_mode, self.metadata["render_modes"])
+        _check_choice("render_camera", render_camera, constants.CAMERA_NAMES)
+        _check_choice("render_quality", render_quality, RENDER_QUALITIES)
+        _check_choice("reward_type", reward_type, REWARD_TYPES)
+
+        self.render_mode = render_mode
+        self.obs_type = obs_type
+        self.cameras = cameras if obs_type != "environment_state_agent_pos" else ()
+        self.camera_config = cameras
+        self.observation_height = height
+        self.observation_width = width
+        self.render_camera = render_camera
+        self.render_quality = render_quality
+        self.reward_type = reward_type
+
+        self._physics = SoArmPhysics.from_scene()
+        self._task: SoArmTask = TASKS[task]()
+        self.task = self._task.name
+        self.task_description = self._task.description
+        self._camera_ids = {
+            name: self._physics.model.name2id(name, "camera") for name in constants.CAMERA_NAMES
+        }
+        self._renderers: dict[tuple[int, int], CameraRenderer] = {}
+        self._viewer = None
+        self._closed = False
+        self._needs_reset = True
+        self._step_count = 0
+        self._last_obs: Any = None
+        self._last_info: dict[str, Any] = {}
+
+        low, high = self._physics.control_range()
+        self.action_space = spaces.Box(
+            low.astype(np.float32), high.astype(np.float32), dtype=np.float32
+        )
+        self._action_low = self.action_space.low.astype(np.float64)
+        self._action_high = self.action_space.high.astype(np.float64)
+        self.observation_space = self._make_observation_space()
+
+        if render_mode == "human":
+            from gym_soarm.viewer import HumanViewer
+
+            self._viewer = HumanViewer(self)
+
+    # --- spaces ------------------------------------------------------------------------
+    def _make_observation_space(self) -> spaces.Dict:
+        image = spaces.Box(
+            0, 255, (self.observation_height, self.observation_width, 3), dtype=np.uint8
+        )
+        # Joint limits never come near +-pi rad (wrist_roll's range is the widest).
+        agent_pos = spaces.Box(-np.pi, np.pi, (len(constants.JOINT_NAMES),), dtype=np.float64)
+        # OrderedDict keeps our key order; Gymnasium sorts the keys of a plain dict.
+        pixels = spaces.Dict(OrderedDict((name, image) for name in self.cameras))
+        if self.obs_type == "pixels":
+            return pixels
+        if self.obs_type == "pixels_agent_pos":
+            return spaces.Dict(OrderedDict(pixels=pixels, agent_pos=agent_pos))
+        env_state = spaces.Box(ENVIRONMENT_STATE_LOW, ENVIRONMENT_STATE_HIGH, dtype=np.float64)
+        return spaces.Dict(OrderedDict(agent_pos=agent_pos, environment_state=env_state))
+
+    # --- physics access --------------------------------------------------------------
+    @property
+    def physics(self) -> SoArmPhysics:
+        """The dm_control physics of this environment (for experts, tests and tools)."""
+        return self._physics
+
+    @property
+    def task_logic(self) -> SoArmTask:
+        """The dm_control task holding this environment's episode logic."""
+        return self._task
+
+    # --- validation --------------------------------------------------------------------
+    def _validate_action(self, action: Any) -> np.ndarray:
+        try:
+            array = np.asarray(action)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(
+                f"action must be an array of 6 joint targets in radians; got {action!r} ({exc})."
+            ) from None
+        if array.dtype == np.bool_ or not np.issubdtype(array.dtype, np.number):
+            raise ValueError(
+                f"action must hold real numbers (float or int), got dtype {array.dtype}; "
+                f"pass e.g. np.asarray(action, dtype=np.float32)."
+            )
+        if np.issubdtype(array.dtype, np.complexfloating):
+            raise ValueError(f"action must be real-valued, got dtype {array.dtype}.")
+        if array.shape != self.action_space.shape:
+            raise ValueError(
+                f"action must have shape {self.action_space.shape} (one target per joint: "
+                f"{', '.join(constants.JOINT_NAMES)}); got shape {array.shape}."
+            )
+        array = array.astype(np.float64)
+        if not np.isfinite(array).all():
+            bad = [constants.JOINT_NAMES[i] for i in np.flatnonzero(~np.isfinite(array))]
+            raise ValueError(
+                f"action must be finite; got {array.tolist()!r} with NaN/inf for {bad}. "
+                "The simulation was not stepped."
+            )
+        return np.clip(array, self._action_low, self._action_high)
+
+    @staticmethod
+    def _validate_options(options: Mapping[str, Any] | None) -> tuple[int | None, float | None]:
+        if options is None:
+            return None, None
+        if not isinstance(options, Mapping):
+            raise ValueError(
+                f"options must be a dict with keys from {_choices(RESET_OPTION_KEYS)}; got {options!r}."
+            )
+        unknown = sorted(set(options) - set(RESET_OPTION_KEYS))
+        if unknown:
+            raise ValueError(
+                f"unknown reset option(s) {unknown!r}; valid options are {_choices(RESET_OPTION_KEYS)}."
+            )
+        cell = options.get("cube_grid_position")
+        if cell is not None:
+            if isinstance(cell, (bool, np.bool_)) or not isinstance(cell, numbers.Integral):
+                raise ValueError(
+                    "cube_grid_position must be an int from 0 to 8 or None (random cell); "
+                    f"got {cell!r} of type {type(cell).__name__}."
+                )
+            if not 0 <= int(cell) < constants.NUM_GRID_CELLS:
+                raise ValueError(
+                    f"cube_grid_position must be from 0 to {constants.NUM_GRID_CELLS - 1} or None; "
+                    f"got {cell!r}."
+                )
+            cell = int(cell)
+        yaw = options.get("cube_rotation_deg")
+        if yaw is not None:
+            if isinstance(yaw, (bool, np.bool_)) or not isinstance(yaw, numbers.Real):
+                raise ValueError(
+                    "cube_rotation_deg must be a finite number of degrees or None (random pick from "
+                    f"{constants.CUBE_YAWS_DEG}); got {yaw!r} of type {type(yaw).__name__}."
+                )
+            if not math.isfinite(float(yaw)):
+                raise ValueError(f"cube_rotation_deg must be finite; got {yaw!r}.")
+            yaw = float(yaw)
+        return cell, yaw
+
+    # --- Gymnasium API -------------------------------------------------------------------
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
+        self._check_open()
+        cell, yaw = self._validate_options(options)
+        super().reset(seed=seed)
+        self._task.configure_episode(self.np_random, cell, yaw)
+        with self._physics.reset_context():
+            self._task.initialize_episode(self._physics)
+        self._needs_reset = False
+        self._step_count = 0
+        obs = self._observation()
+        info = self._info(physics_unstable=False)
+        if self._viewer is not None:
+            self._viewer.show(info)
+        return obs, info
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        self._check_open()
+        target = self._validate_action(action)
+        if self._needs_reset:
+            raise RuntimeError("call reset() before step(): the episode has not started")
+        self._task.before_step(target, self._physics)
+        unstable = False
+        try:
+            self._physics.step(constants.N_SUBSTEPS)
+        except control.PhysicsError as exc:
+            unstable, reason = True, str(exc)
+        if not unstable and not self._physics.state_is_finite():
+            unstable, reason = True, "the simulation state holds NaN or inf"
+        self._step_count += 1
+        if unstable:
+            warnings.warn(
+                f"The physics diverged ({reason}); the episode is truncated. Call reset() to "
+                "start a clean episode.",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+            self._needs_reset = True
+            info = dict(self._last_info, is_success=False, physics_unstable=True)
+            return self._last_obs, 0.0, False, True, info
+        success = self._task.is_success(self._physics)
+        terms = self._task.reward_terms(self._physics)
+        reward = float(success) if self.reward_type == "sparse" else self._task.weights.total(terms)
+        obs = self._observation()
+        info = self._info(physics_unstable=False, success=success, terms=terms)
+        if self._viewer is not None:
+            self._viewer.show(info)
+        return obs, reward, success, False, info
+
+    def render(self) -> np.ndarray | None:
+        self._check_open()
+        if self.render_mode == "rgb_array":
+            return self.render_camera_image(self.render_camera)
+        if self.render_mode == "human" and self._viewer is not None:
+            self._viewer.show(None)
+        return None
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+        for renderer in self._renderers.values():
+            renderer.close()
+        self._renderers.clear()
+        self._last_obs = None
+
+    # --- helpers ---------------------------------------------------------------------------
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("this environment was closed; create a new one with gym.make(...)")
+
+    def render_camera_image(
+        self, camera: str, height: int | None = None, width: int | None = None
+    ) -> np.ndarray:
+        """Render one camera now as a fresh uint8 (H, W, 3) array.
+
+        ``height``/``width`` default to the observation size; another size gets a
+        renderer of its own (created once, reused).
+        """
+        self._check_open()
+        _check_choice("camera", camera, constants.CAMERA_NAMES)
+        h = self.observation_height if height is None else _check_image_size("height", height)
+        w = self.observation_width if width is None else _check_image_size("width", width)
+        renderer = self._renderer_for(h, w)
+        return renderer.render(self._physics.data.ptr, self._camera_ids[camera])
+
+    def _renderer_for(self, height: int, width: int) -> CameraRenderer:
+        renderer = self._renderers.get((height, width))
+        if renderer is None:
+            renderer = CameraRenderer(self._physics.model.ptr, width, height, self.render_quality)
+            self._renderers[(height, width)] = renderer
+        return renderer
+
+    def _observation(self) -> Any:
+        physics = self._physics
+        if self.obs_type == "environment_state_agent_pos":
+            obs = {
+                "agent_pos": physics.joint_angles(),
+                "environment_state": np.concatenate(
+                    [
+                        physics.cube_position(),
+                        physics.cube_quaternion(),
+                        physics.gripper_position(),
+                        physics.goal_position(),
+                    ]
+                ),
+            }
+        else:
+            renderer = self._renderer_for(self.observation_height, self.observation_width)
+            data = physics.data.ptr
+            pixels = {name: renderer.render(data, self._camera_ids[name]) for name in self.cameras}
+            if self.obs_type == "pixels":
+                obs = pixels
+            else:
+                obs = {"pixels": pixels, "agent_pos": physics.joint_angles()}
+        self._last_obs = obs
+        return obs
+
+    def _info(
+        self,
+        physics_unstable: bool,
+        success: bool | None = None,
+        terms: dict[str, float] | None = None,
+    ) -> dict[str, Any]:
+        physics = self._physics
+        if success is None:
+            success = self._task.is_success(physics)
+        if terms is None:
+            terms = self._task.reward_terms(physics)
+        start = self._task.start
+        self._last_info = {
+            "is_success": bool(success),
+            "cube_grid_position": start.grid_cell,
+            "cube_rotation_deg": start.yaw_deg,
+            "cube_pos": physics.cube_position(),
+            "gripper_pos": physics.gripper_position(),
+            "reward_terms": dict(terms),
+            "task": self.task_description,
+            "physics_unstable": physics_unstable,
+        }
+        return self._last_info

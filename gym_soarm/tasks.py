@@ -1,0 +1,209 @@
+"""Episode logic: where the cube starts, what earns reward, what counts as success.
+
+One :class:`dm_control.suite.base.Task` subclass per task. Tasks never draw random
+numbers of their own: the environment hands them its ``np_random`` generator.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from types import MappingProxyType
+
+import numpy as np
+from dm_control.suite import base
+
+from gym_soarm import constants
+from gym_soarm.physics import SoArmPhysics
+
+
+def tolerance(distance: float, bound: float, margin: float) -> float:
+    """1 inside ``bound``, falling smoothly to 0.1 at ``bound + margin``, in [0, 1]."""
+    if distance <= bound:
+        return 1.0
+    x = (distance - bound) / margin
+    return float(math.exp(-math.log(10.0) * x * x))
+
+
+@dataclasses.dataclass(frozen=True)
+class RewardWeights:
+    """Weights of the dense reward terms; they sum to 1 so the total is in [0, 1]."""
+
+    terms: Mapping[str, float]
+
+    def __post_init__(self) -> None:
+        if not math.isclose(sum(self.terms.values()), 1.0):
+            raise ValueError(f"reward weights must sum to 1, got {dict(self.terms)!r}")
+        object.__setattr__(self, "terms", MappingProxyType(dict(self.terms)))
+
+    def total(self, values: Mapping[str, float]) -> float:
+        return float(sum(w * values[name] for name, w in self.terms.items()))
+
+
+PICK_AND_PLACE_WEIGHTS = RewardWeights({"reach": 0.1, "grasp": 0.2, "lift": 0.3, "place": 0.4})
+LIFT_WEIGHTS = RewardWeights({"reach": 0.2, "grasp": 0.3, "lift": 0.5})
+
+REACH_MARGIN_M = 0.10
+CARRY_HEIGHT_M = 0.05
+PLACE_MARGIN_M = 0.20
+RESTING_SPEED_M_S = 0.05
+
+
+@dataclasses.dataclass(frozen=True)
+class EpisodeStart:
+    """Where the cube starts: its grid cell and its yaw in degrees."""
+
+    grid_cell: int
+    yaw_deg: float
+
+
+class SoArmTask(base.Task):
+    """Shared episode logic of the SO-101 cube tasks."""
+
+    name: str = ""
+    description: str = ""
+    weights: RewardWeights
+
+    def __init__(self) -> None:
+        super().__init__(random=None)
+        self.rng: np.random.Generator | None = None
+        self._requested_cell: int | None = None
+        self._requested_yaw: float | None = None
+        self.start: EpisodeStart | None = None
+
+    def configure_episode(
+        self, rng: np.random.Generator, grid_cell: int | None, yaw_deg: float | None
+    ) -> None:
+        """Set the generator and the (already validated) options of the next episode."""
+        self.rng = rng
+        self._requested_cell = grid_cell
+        self._requested_yaw = yaw_deg
+
+    def initialize_episode(self, physics: SoArmPhysics) -> None:
+        """Home pose for the arm and the cube on its grid cell; called in a reset context."""
+        if self.rng is None:
+            raise RuntimeError("configure_episode() must be called before initialize_episode()")
+        cell = self._requested_cell
+        if cell is None:
+            cell = int(self.rng.integers(constants.NUM_GRID_CELLS))
+        yaw = self._requested_yaw
+        if yaw is None:
+            yaw = float(
+                constants.CUBE_YAWS_DEG[int(self.rng.integers(len(constants.CUBE_YAWS_DEG)))]
+            )
+        self._requested_cell = self._requested_yaw = None  # options apply to one reset only
+        physics.reset_to_home()
+        x, y = constants.grid_cell_position(cell)
+        half = math.radians(yaw) / 2
+        physics.set_cube_pose(
+            np.array([x, y, constants.TABLE_TOP_Z_M + constants.CUBE_HALF_M]),
+            np.array([math.cos(half), 0.0, 0.0, math.sin(half)]),
+        )
+        self.start = EpisodeStart(cell, float(yaw))
+        super().initialize_episode(physics)
+
+    def before_step(self, action: np.ndarray, physics: SoArmPhysics) -> None:
+        physics.set_joint_targets(action)
+
+    def get_observation(self, physics: SoArmPhysics) -> dict[str, np.ndarray]:
+        return {"agent_pos": physics.joint_angles()}
+
+    # --- reward ------------------------------------------------------------------------
+    def reward_terms(self, physics: SoArmPhysics) -> dict[str, float]:
+        raise NotImplementedError
+
+    def get_reward(self, physics: SoArmPhysics) -> float:
+        return self.weights.total(self.reward_terms(physics))
+
+    def is_success(self, physics: SoArmPhysics) -> bool:
+        raise NotImplementedError
+
+    def get_termination(self, physics: SoArmPhysics) -> float | None:
+        return 0.0 if self.is_success(physics) else None
+
+    def _reach(self, physics: SoArmPhysics) -> float:
+        distance = float(np.linalg.norm(physics.grasp_center() - physics.cube_position()))
+        return tolerance(distance, 0.01, REACH_MARGIN_M)
+
+    @staticmethod
+    def _lift_progress(physics: SoArmPhysics, grasped: bool) -> float:
+        if not grasped:
+            return 0.0
+        return float(np.clip(physics.cube_bottom_height() / CARRY_HEIGHT_M, 0.0, 1.0))
+
+
+class PickAndPlaceTask(SoArmTask):
+    """Pick the cube up and put it down on the green pad.
+
+    Success: the cube's centre is within the pad's radius, its bottom within 5 mm of
+    the pad's top, it is at rest and neither jaw touches it.
+    """
+
+    name = "PickAndPlaceCube-v0"
+    description = "Pick up the blue cube and place it on the green pad."
+    weights = PICK_AND_PLACE_WEIGHTS
+
+    def _on_goal(self, physics: SoArmPhysics) -> bool:
+        offset = physics.cube_position()[:2] - physics.goal_position()[:2]
+        if float(np.hypot(*offset)) > constants.GOAL_RADIUS_M:
+            return False
+        height = physics.cube_bottom_height() - constants.GOAL_TOP_Z_M
+        return abs(height) <= constants.PLACE_HEIGHT_TOL_M
+
+    def is_success(self, physics: SoArmPhysics) -> bool:
+        return (
+            self._on_goal(physics)
+            and not physics.cube_touched_by_jaws()
+            and float(np.linalg.norm(physics.cube_velocity())) < RESTING_SPEED_M_S
+        )
+
+    def reward_terms(self, physics: SoArmPhysics) -> dict[str, float]:
+        if self.is_success(physics):
+            return dict.fromkeys(self.weights.terms, 1.0)
+        grasped = physics.cube_grasped()
+        lift = self._lift_progress(physics, grasped)
+        xy = physics.cube_position()[:2] - physics.goal_position()[:2]
+        near_goal = tolerance(float(np.hypot(*xy)), constants.GOAL_RADIUS_M / 2, PLACE_MARGIN_M)
+        # Carrying the cube towards the pad earns the place term; so does a cube on the pad.
+        place = near_goal * max(lift, 1.0 if self._on_goal(physics) else 0.0)
+        return {
+            "reach": self._reach(physics),
+            "grasp": 1.0 if grasped else 0.0,
+            "lift": lift,
+            "place": place,
+        }
+
+
+class LiftTask(SoArmTask):
+    """Lift the cube 5 cm off the table.
+
+    Success: the cube's bottom is at least 5 cm above the table while both jaws hold it.
+    """
+
+    name = "LiftCube-v0"
+    description = "Pick up the blue cube and lift it 5 cm above the table."
+    weights = LIFT_WEIGHTS
+
+    def is_success(self, physics: SoArmPhysics) -> bool:
+        return physics.cube_grasped() and physics.cube_bottom_height() >= constants.LIFT_HEIGHT_M
+
+    def reward_terms(self, physics: SoArmPhysics) -> dict[str, float]:
+        grasped = physics.cube_grasped()
+        return {
+            "reach": self._reach(physics),
+            "grasp": 1.0 if grasped else 0.0,
+            "lift": float(
+                np.clip(
+                    physics.cube_bottom_height() / constants.LIFT_HEIGHT_M if grasped else 0.0,
+                    0.0,
+                    1.0,
+                )
+            ),
+        }
+
+
+TASKS: dict[str, type[SoArmTask]] = {
+    "pick_and_place": PickAndPlaceTask,
+    "lift": LiftTask,
+}

@@ -1,0 +1,49 @@
+"""Shared fixtures: small images keep the suite fast on a 2-core CPU."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import gym_soarm
+
+SMALL = {"observation_height": 48, "observation_width": 64}
+
+
+@pytest.fixture
+def make_env():
+    """Build environments with gym.make and close them after the test."""
+    envs: list[gym.Env] = []
+
+    def _make(env_id: str = "SoArm-v0", **kwargs) -> gym.Env:
+        env = gym.make(env_id, **kwargs)
+        envs.append(env)
+        return env
+
+    yield _make
+    for env in envs:
+        env.close()
+
+
+@pytest.fixture
+def state_env(make_env):
+    return make_env("SoArm-v0", obs_type="environment_state_agent_pos")
+
+
+def rollout(env: gym.Env, seed: int, steps: int, action_seed: int = 0):
+    """Reset with ``seed`` and step with reproducible random actions."""
+    rng = np.random.default_rng(action_seed)
+    low, high = env.action_space.low, env.action_space.high
+    obs, info = env.reset(seed=seed)
+    trace = [(obs, 0.0, info)]
+    for _ in range(steps):
+        action = rng.uniform(low, high).astype(np.float32)
+        obs, reward, terminated, truncated, info = env.step(action)
+        trace.append((obs, reward, info))
+        if terminated or truncated:
+            break
+    return trace
+
+
+assert gym_soarm.ENV_IDS  # the import registers the ids used by every test
