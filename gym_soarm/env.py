@@ -18,6 +18,7 @@ from gym_soarm import constants
 from gym_soarm.physics import SoArmPhysics
 from gym_soarm.rendering import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE, RENDER_QUALITIES, CameraRenderer
 from gym_soarm.tasks import TASKS, SoArmTask
+from gym_soarm.units import UNITS, joint_units
 
 OBS_TYPES = ("pixels", "pixels_agent_pos", "environment_state_agent_pos")
 REWARD_TYPES = ("dense", "sparse")
@@ -110,7 +111,10 @@ class SoArmEnv(gym.Env):
       where ``environment_state`` is cube position (3, m), cube quaternion (w, x, y, z),
       ``gripperframe`` site position (3, m) and goal position (3, m). Renders nothing.
 
-    ``agent_pos`` holds the six joint positions in radians, the units of the action.
+    ``agent_pos`` holds the six joint positions in the units of the action: radians by
+    default; with ``units="lerobot"`` the body joints in degrees and the gripper in 0 to
+    100 (0 = closed), as LeRobot's SO-101 follower; with ``units="lerobot_range"`` the
+    body joints in -100 to 100 (see :mod:`gym_soarm.units`). The action bounds follow.
 
     Args:
         task: ``"pick_and_place"`` or ``"lift"``.
@@ -123,6 +127,8 @@ class SoArmEnv(gym.Env):
         render_quality: ``"fast"`` (no shadows, reflections or multisampling) or
             ``"high"`` (shadows and 4x multisampling).
         reward_type: ``"dense"`` (weighted named terms in [0, 1]) or ``"sparse"``.
+        units: joint units of actions and ``agent_pos``: ``"radians"``, ``"lerobot"``
+            or ``"lerobot_range"``.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": constants.RENDER_FPS}
@@ -138,6 +144,7 @@ class SoArmEnv(gym.Env):
         render_camera: str = constants.DEFAULT_RENDER_CAMERA,
         render_quality: str = "fast",
         reward_type: str = "dense",
+        units: str = "radians",
     ) -> None:
         # Validate every argument before building anything.
         _check_choice("task", task, tuple(TASKS))
@@ -150,6 +157,7 @@ class SoArmEnv(gym.Env):
         _check_choice("render_camera", render_camera, constants.CAMERA_NAMES)
         _check_choice("render_quality", render_quality, RENDER_QUALITIES)
         _check_choice("reward_type", reward_type, REWARD_TYPES)
+        _check_choice("units", units, UNITS)
 
         self.render_mode = render_mode
         self.obs_type = obs_type
@@ -160,6 +168,8 @@ class SoArmEnv(gym.Env):
         self.render_camera = render_camera
         self.render_quality = render_quality
         self.reward_type = reward_type
+        self.units = units
+        self._units = joint_units(units)
 
         self._physics = SoArmPhysics.from_scene()
         self._task: SoArmTask = TASKS[task]()
@@ -176,12 +186,13 @@ class SoArmEnv(gym.Env):
         self._last_obs: Any = None
         self._last_info: dict[str, Any] = {}
 
-        low, high = self._physics.control_range()
+        # Actions are clipped in radians; the space shows the bounds in the chosen units.
+        self._action_low, self._action_high = self._physics.control_range()
         self.action_space = spaces.Box(
-            low.astype(np.float32), high.astype(np.float32), dtype=np.float32
+            self._units.from_radians(self._action_low).astype(np.float32),
+            self._units.from_radians(self._action_high).astype(np.float32),
+            dtype=np.float32,
         )
-        self._action_low = self.action_space.low.astype(np.float64)
-        self._action_high = self.action_space.high.astype(np.float64)
         self.observation_space = self._make_observation_space()
 
         if render_mode == "human":
@@ -195,7 +206,12 @@ class SoArmEnv(gym.Env):
             0, 255, (self.observation_height, self.observation_width, 3), dtype=np.uint8
         )
         # Joint limits never come near +-pi rad (wrist_roll's range is the widest).
-        agent_pos = spaces.Box(-np.pi, np.pi, (len(constants.JOINT_NAMES),), dtype=np.float64)
+        n_joints = len(constants.JOINT_NAMES)
+        agent_pos = spaces.Box(
+            self._units.from_radians(np.full(n_joints, -np.pi)),
+            self._units.from_radians(np.full(n_joints, np.pi)),
+            dtype=np.float64,
+        )
         # OrderedDict keeps our key order; Gymnasium sorts the keys of a plain dict.
         pixels = spaces.Dict(OrderedDict((name, image) for name in self.cameras))
         if self.obs_type == "pixels":
@@ -216,13 +232,18 @@ class SoArmEnv(gym.Env):
         """The dm_control task holding this environment's episode logic."""
         return self._task
 
+    @property
+    def viewer(self) -> Any:
+        """The ``render_mode='human'`` window (a ``HumanViewer``), or None."""
+        return self._viewer
+
     # --- validation --------------------------------------------------------------------
     def _validate_action(self, action: Any) -> np.ndarray:
         try:
             array = np.asarray(action)
         except (TypeError, ValueError) as exc:
             raise ValueError(
-                f"action must be an array of 6 joint targets in radians; got {action!r} ({exc})."
+                f"action must be an array of 6 joint targets in {self.units}; got {action!r} ({exc})."
             ) from None
         if array.dtype == np.bool_ or not np.issubdtype(array.dtype, np.number):
             raise ValueError(
@@ -243,7 +264,7 @@ class SoArmEnv(gym.Env):
                 f"action must be finite; got {array.tolist()!r} with NaN/inf for {bad}. "
                 "The simulation was not stepped."
             )
-        return np.clip(array, self._action_low, self._action_high)
+        return np.clip(self._units.to_radians(array), self._action_low, self._action_high)
 
     @staticmethod
     def _validate_options(options: Mapping[str, Any] | None) -> tuple[int | None, float | None]:
@@ -385,7 +406,7 @@ class SoArmEnv(gym.Env):
         physics = self._physics
         if self.obs_type == "environment_state_agent_pos":
             obs = {
-                "agent_pos": physics.joint_angles(),
+                "agent_pos": self._units.from_radians(physics.joint_angles()),
                 "environment_state": np.concatenate(
                     [
                         physics.cube_position(),
@@ -402,7 +423,10 @@ class SoArmEnv(gym.Env):
             if self.obs_type == "pixels":
                 obs = pixels
             else:
-                obs = {"pixels": pixels, "agent_pos": physics.joint_angles()}
+                obs = {
+                    "pixels": pixels,
+                    "agent_pos": self._units.from_radians(physics.joint_angles()),
+                }
         self._last_obs = obs
         return obs
 

@@ -1,0 +1,144 @@
+"""Joint units of the real SO-101 follower arm as LeRobot reads it, and radians.
+
+The simulation works in radians. LeRobot's SO-101 follower reports and takes the six
+joint positions as ``<motor>.pos`` values in one of two calibrated conventions:
+
+* ``"lerobot"`` (LeRobot's default since 0.4.4): the five body joints in **degrees**, zero
+  at the middle of each joint's range (the same zero as this model, so degrees are
+  ``rad * 180 / pi``), and the gripper in **0 to 100** percent of its range, 0 = closed.
+* ``"lerobot_range"`` (the older default): the body joints in **-100 to 100** percent of
+  their range; ``wrist_roll``, calibrated over a full turn, maps -pi..pi rad onto
+  -100..100. The gripper stays 0 to 100.
+
+Every conversion is affine per joint (``value = scale * rad + offset``); this module
+holds those figures once and the environment, the recorder and the dataset use them.
+
+=============  ===================  ====================  =============================
+joint          sim range (rad)      ``"lerobot"``         ``"lerobot_range"``
+=============  ===================  ====================  =============================
+shoulder_pan   -1.91986 .. 1.91986  deg = rad * 180/pi    rad / 1.91986 * 100
+shoulder_lift  -1.74533 .. 1.74533  deg = rad * 180/pi    rad / 1.74533 * 100
+elbow_flex     -1.69 .. 1.69        deg = rad * 180/pi    rad / 1.69 * 100
+wrist_flex     -1.65806 .. 1.65806  deg = rad * 180/pi    rad / 1.65806 * 100
+wrist_roll     -2.74385 .. 2.84121  deg = rad * 180/pi    rad / pi * 100
+gripper        -0.17453 .. 1.74533  (rad + 0.17453) / 1.91986 * 100 (both modes)
+=============  ===================  ====================  =============================
+
+Only numpy is used here: no LeRobot, no torch.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from gym_soarm import constants
+
+RADIANS = "radians"
+LEROBOT = "lerobot"
+LEROBOT_RANGE = "lerobot_range"
+UNITS: tuple[str, ...] = (RADIANS, LEROBOT, LEROBOT_RANGE)
+"""Valid values of the ``units`` keyword, the default first."""
+
+FEATURE_NAMES: tuple[str, ...] = tuple(f"{joint}.pos" for joint in constants.JOINT_NAMES)
+"""LeRobot's names of the six values: ``shoulder_pan.pos`` ... ``gripper.pos``."""
+
+# Servo target ranges of the model's position actuators (radians), in JOINT_NAMES order.
+# They equal the actuator ctrlrange in assets/so101.xml; a test checks that they agree.
+SERVO_RANGE_LOW_RAD: tuple[float, ...] = (-1.91986, -1.74533, -1.69, -1.65806, -2.74385, -0.17453)
+SERVO_RANGE_HIGH_RAD: tuple[float, ...] = (1.91986, 1.74533, 1.69, 1.65806, 2.84121, 1.74533)
+
+# LeRobot calibrates wrist_roll over the servo's full turn, not over a swept range.
+_FULL_TURN_JOINTS = ("wrist_roll",)
+_RAD_TO_DEG = 180.0 / math.pi
+
+
+@dataclass(frozen=True)
+class JointUnits:
+    """The affine map ``value = scale * radians + offset`` of the six joints in one unit.
+
+    Attributes:
+        name: one of :data:`UNITS`.
+        scale: per-joint factor, shape (6,), all positive.
+        offset: per-joint offset, shape (6,).
+    """
+
+    name: str
+    scale: np.ndarray
+    offset: np.ndarray
+
+    def from_radians(self, radians: np.ndarray | Sequence[float]) -> np.ndarray:
+        """Convert joint positions from radians to these units (float64, same shape).
+
+        The last axis must hold the six joints; leading axes (e.g. time) are kept.
+        """
+        return np.asarray(radians, dtype=np.float64) * self.scale + self.offset
+
+    def to_radians(self, values: np.ndarray | Sequence[float]) -> np.ndarray:
+        """Convert joint positions from these units to radians (float64, same shape)."""
+        return (np.asarray(values, dtype=np.float64) - self.offset) / self.scale
+
+
+def _gripper_percent(low: float, high: float) -> tuple[float, float]:
+    # 0 at the closed (lower) end, 100 at the open (upper) end.
+    scale = 100.0 / (high - low)
+    return scale, -low * scale
+
+
+def _build(name: str) -> JointUnits:
+    n = len(constants.JOINT_NAMES)
+    if name == RADIANS:
+        return JointUnits(name, np.ones(n), np.zeros(n))
+    scale = np.empty(n)
+    offset = np.zeros(n)
+    for i, joint in enumerate(constants.JOINT_NAMES):
+        low, high = SERVO_RANGE_LOW_RAD[i], SERVO_RANGE_HIGH_RAD[i]
+        if joint == constants.GRIPPER_JOINT_NAME:
+            scale[i], offset[i] = _gripper_percent(low, high)
+        elif name == LEROBOT:
+            scale[i] = _RAD_TO_DEG
+        elif joint in _FULL_TURN_JOINTS:
+            scale[i] = 100.0 / math.pi
+        else:
+            # Body joints are symmetric about zero: -100 at the lower end, +100 at the upper.
+            scale[i] = 100.0 / high
+    return JointUnits(name, scale, offset)
+
+
+_TABLE: dict[str, JointUnits] = {name: _build(name) for name in UNITS}
+
+
+def joint_units(units: str) -> JointUnits:
+    """The conversion of ``units`` (one of :data:`UNITS`).
+
+    Raises:
+        ValueError: ``units`` is not one of :data:`UNITS`.
+    """
+    if not isinstance(units, str) or units not in _TABLE:
+        raise ValueError(
+            f"units must be one of {', '.join(repr(u) for u in UNITS)}; got {units!r}."
+        )
+    return _TABLE[units]
+
+
+def radians_to_units(radians: np.ndarray | Sequence[float], units: str) -> np.ndarray:
+    """Convert six joint positions (last axis) from radians to ``units``."""
+    return joint_units(units).from_radians(radians)
+
+
+def units_to_radians(values: np.ndarray | Sequence[float], units: str) -> np.ndarray:
+    """Convert six joint positions (last axis) from ``units`` to radians."""
+    return joint_units(units).to_radians(values)
+
+
+def radians_to_lerobot(radians: np.ndarray | Sequence[float]) -> np.ndarray:
+    """Radians to LeRobot follower units: body joints in degrees, gripper 0 to 100."""
+    return _TABLE[LEROBOT].from_radians(radians)
+
+
+def lerobot_to_radians(values: np.ndarray | Sequence[float]) -> np.ndarray:
+    """LeRobot follower units (body degrees, gripper 0 to 100) to radians."""
+    return _TABLE[LEROBOT].to_radians(values)
