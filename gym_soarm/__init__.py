@@ -53,4 +53,15 @@ for _env_id, (_task, _steps) in ENV_IDS.items():
             kwargs={"task": _task},
         )
 
-__all__ = ["ENV_IDS", "GLBackendError", "MeshError", "SoArmEnv", "__version__"]
+
+def __getattr__(name: str) -> object:
+    # make_expert is imported on first use, so that `python -m gym_soarm.expert` runs
+    # the module once, as __main__.
+    if name == "make_expert":
+        from gym_soarm.expert import make_expert
+
+        return make_expert
+    raise AttributeError(f"module 'gym_soarm' has no attribute {name!r}")
+
+
+__all__ = ["ENV_IDS", "GLBackendError", "MeshError", "SoArmEnv", "__version__", "make_expert"]

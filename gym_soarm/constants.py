@@ -58,7 +58,7 @@ GOAL_RADIUS_M = 0.04
 
 # The 3 x 3 grid of cube start cells. Cell i sits at GRID_CENTER + (dx, dy) with
 # dx = GRID_DX_M[i // 3] and dy = GRID_DY_M[i % 3].
-GRID_CENTER_M: tuple[float, float] = (0.0, 0.36)
+GRID_CENTER_M: tuple[float, float] = (0.0, 0.35)
 GRID_DX_M: tuple[float, float, float] = (-0.10, 0.0, 0.10)
 GRID_DY_M: tuple[float, float, float] = (-0.075, 0.0, 0.075)
 NUM_GRID_CELLS = 9
