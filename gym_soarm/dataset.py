@@ -1,0 +1,878 @@
+"""A LeRobotDataset v3.0 writer that needs neither LeRobot nor torch.
+
+:class:`LeRobotDatasetWriter` writes the folder layout that ``lerobot`` reads with
+``LeRobotDataset(repo_id, root=...)``, using pyarrow for the parquet files (extra
+``gym-soarm[dataset]``) and the ffmpeg binary of imageio-ffmpeg for H.264 videos::
+
+    root/
+      meta/info.json                          format version, fps, features, totals
+      meta/stats.json                         min/max/mean/std/count and q01..q99 per feature
+      meta/tasks.parquet                      task sentence <-> task_index
+      meta/episodes/chunk-000/file-000.parquet  one row per episode: lengths, file
+                                                pointers, video time spans, stats
+      data/chunk-000/file-000.parquet         one row per frame, many episodes per file
+      videos/<camera key>/chunk-000/file-000.mp4  one H.264 file per camera, episodes
+                                                  one after another
+
+Use it like LeRobot's own ``LeRobotDataset.create``::
+
+    writer = LeRobotDatasetWriter.create(root, fps=50, features=features)
+    for frame in frames:
+        writer.add_frame({**frame, "task": "Lift the cube."})
+    writer.save_episode()
+    writer.finalize()
+
+Every :meth:`~LeRobotDatasetWriter.save_episode` leaves a complete, readable dataset on
+disk (files are replaced atomically), so an interrupted recording keeps every episode
+saved before the interruption. :meth:`~LeRobotDatasetWriter.finalize` drops an unsaved
+episode and removes the writer's scratch folder.
+
+Frame timestamps are exactly ``frame_index / fps``; each episode's span in its video file
+starts where the previous episode's frames end, on a frame boundary.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import shutil
+import signal
+import subprocess
+import threading
+import warnings
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+CODEBASE_VERSION = "v3.0"
+CHUNKS_SIZE = 1000
+DATA_FILES_SIZE_MB = 100
+VIDEO_FILES_SIZE_MB = 200
+QUANTILES: dict[str, float] = {"q01": 0.01, "q10": 0.10, "q50": 0.50, "q90": 0.90, "q99": 0.99}
+STAT_NAMES: tuple[str, ...] = ("min", "max", "mean", "std", "count", *QUANTILES)
+
+INFO_PATH = "meta/info.json"
+STATS_PATH = "meta/stats.json"
+TASKS_PATH = "meta/tasks.parquet"
+CHUNK_FILE = "chunk-{chunk_index:03d}/file-{file_index:03d}"
+EPISODES_PATH = "meta/episodes/" + CHUNK_FILE + ".parquet"
+DATA_PATH = "data/" + CHUNK_FILE + ".parquet"
+VIDEO_PATH = "videos/{video_key}/" + CHUNK_FILE + ".mp4"
+_SCRATCH_DIR = ".writer-scratch"
+
+NUMERIC_DTYPES: tuple[str, ...] = ("float32", "float64", "int32", "int64", "bool")
+VIDEO_DTYPE = "video"
+AUTO_FEATURES: dict[str, str] = {
+    "timestamp": "float32",
+    "frame_index": "int64",
+    "episode_index": "int64",
+    "index": "int64",
+    "task_index": "int64",
+}
+"""Columns every dataset has; the writer fills them, frames must not carry them."""
+
+# Image statistics use every frame, subsampled in space to about this many pixels a side.
+_STATS_IMAGE_SIDE = 150
+
+
+def _require_pyarrow() -> Any:
+    try:
+        import pyarrow
+        import pyarrow.parquet
+    except ImportError as exc:
+        raise ImportError(
+            "Writing LeRobot datasets needs pyarrow: pip install 'gym-soarm[dataset]'"
+        ) from exc
+    return pyarrow
+
+
+@dataclass(frozen=True)
+class Feature:
+    """One declared feature of a dataset.
+
+    Attributes:
+        key: the column or video name, e.g. ``"observation.state"``.
+        dtype: one of :data:`NUMERIC_DTYPES` or ``"video"``.
+        shape: ``(n,)`` for numbers, ``(height, width, 3)`` for videos.
+        names: names of the ``n`` values, or ``None``.
+    """
+
+    key: str
+    dtype: str
+    shape: tuple[int, ...]
+    names: tuple[str, ...] | None
+
+    @property
+    def is_video(self) -> bool:
+        return self.dtype == VIDEO_DTYPE
+
+    @property
+    def size(self) -> int:
+        return self.shape[0]
+
+
+def _parse_features(features: Any) -> dict[str, Feature]:
+    if not isinstance(features, Mapping) or not features:
+        raise ValueError(
+            "features must be a non-empty dict {key: {'dtype': ..., 'shape': ..., 'names': ...}}; "
+            f"got {features!r}."
+        )
+    parsed: dict[str, Feature] = {}
+    for key, spec in features.items():
+        if not isinstance(key, str) or not key or "/" in key:
+            raise ValueError(f"feature keys must be non-empty strings without '/'; got {key!r}.")
+        if key in AUTO_FEATURES or key == "task":
+            raise ValueError(
+                f"feature {key!r} is written by the writer itself; remove it from features."
+            )
+        if not isinstance(spec, Mapping) or "dtype" not in spec or "shape" not in spec:
+            raise ValueError(
+                f"feature {key!r} must be a dict with 'dtype' and 'shape' (and optional 'names'); "
+                f"got {spec!r}."
+            )
+        dtype, names = spec["dtype"], spec.get("names")
+        try:
+            shape = tuple(int(n) for n in spec["shape"])
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"feature {key!r} has shape {spec['shape']!r}; expected ints."
+            ) from None
+        if dtype == VIDEO_DTYPE:
+            if len(shape) != 3 or shape[2] != 3 or min(shape) <= 0:
+                raise ValueError(
+                    f"video feature {key!r} must have shape (height, width, 3); got {shape}."
+                )
+            if shape[0] % 2 or shape[1] % 2:
+                raise ValueError(
+                    f"video feature {key!r} has shape {shape}; H.264 yuv420p needs an even "
+                    "height and width."
+                )
+            names = ("height", "width", "channels")
+        elif dtype in NUMERIC_DTYPES:
+            if len(shape) != 1 or shape[0] <= 0:
+                raise ValueError(
+                    f"numeric feature {key!r} must have a 1-D shape (n,); got {shape}."
+                )
+            if names is not None:
+                names = tuple(str(n) for n in names)
+                if len(names) != shape[0]:
+                    raise ValueError(
+                        f"feature {key!r} has {len(names)} names for shape {shape}; give one "
+                        "name per value or names=None."
+                    )
+        else:
+            raise ValueError(
+                f"feature {key!r} has dtype {dtype!r}; expected one of "
+                f"{', '.join(repr(d) for d in (*NUMERIC_DTYPES, VIDEO_DTYPE))}."
+            )
+        parsed[key] = Feature(key, dtype, shape, names)
+    return parsed
+
+
+def _check_root(root: Path, overwrite: bool) -> None:
+    if root.exists() and not root.is_dir():
+        raise FileExistsError(
+            f"root {str(root)!r} exists and is not a folder; choose another root."
+        )
+    if root.is_dir() and any(root.iterdir()):
+        if not overwrite:
+            raise FileExistsError(
+                f"root {str(root)!r} already exists and is not empty; choose a new folder or "
+                "pass overwrite=True (--overwrite) to replace the dataset in it."
+            )
+        if not (root / INFO_PATH).is_file():
+            raise ValueError(
+                f"root {str(root)!r} is not empty and holds no {INFO_PATH}; it does not look like "
+                "a dataset, so it is not deleted even with overwrite=True. Choose another root."
+            )
+        shutil.rmtree(root)
+
+
+@contextlib.contextmanager
+def _deferred_interrupt() -> Iterator[None]:
+    """Hold Ctrl-C back until the block ends, so files are never left half-committed."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[Any] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if received:
+            raise KeyboardInterrupt
+
+
+# --- statistics ----------------------------------------------------------------------------
+def numeric_stats(values: np.ndarray) -> dict[str, np.ndarray]:
+    """Statistics of a (frames, n) array over frames: min, max, mean, std, count, q01..q99.
+
+    Quantiles use numpy's default linear interpolation; ``std`` is the population value.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    stats = {
+        "min": values.min(axis=0),
+        "max": values.max(axis=0),
+        "mean": values.mean(axis=0),
+        "std": values.std(axis=0),
+        "count": np.array([len(values)]),
+    }
+    quantiles = np.quantile(values, list(QUANTILES.values()), axis=0)
+    stats.update(zip(QUANTILES, quantiles, strict=True))
+    return stats
+
+
+def _histogram_quantile(cumulative: np.ndarray, q: float) -> float:
+    # The same value as np.quantile(values, q) for the values counted by the histogram.
+    total = int(cumulative[-1])
+    position = q * (total - 1)
+    below = math.floor(position)
+    above = min(below + 1, total - 1)
+    low = int(np.searchsorted(cumulative, below, side="right"))
+    high = int(np.searchsorted(cumulative, above, side="right"))
+    return low + (position - below) * (high - low)
+
+
+def histogram_image_stats(histogram: np.ndarray, frames: int) -> dict[str, np.ndarray]:
+    """Image statistics in [0, 1] per channel, shape (3, 1, 1), from uint8 histograms.
+
+    Args:
+        histogram: (3, 256) pixel counts per channel and value.
+        frames: the number of frames counted, reported as ``count``.
+    """
+    levels = np.arange(256, dtype=np.float64)
+    stats: dict[str, list[float]] = {name: [] for name in STAT_NAMES if name != "count"}
+    for counts in histogram:
+        total = counts.sum()
+        present = np.flatnonzero(counts)
+        mean = float(counts @ levels) / total
+        stats["min"].append(float(present[0]))
+        stats["max"].append(float(present[-1]))
+        stats["mean"].append(mean)
+        stats["std"].append(math.sqrt(float(counts @ (levels - mean) ** 2) / total))
+        cumulative = np.cumsum(counts)
+        for name, q in QUANTILES.items():
+            stats[name].append(_histogram_quantile(cumulative, q))
+    result = {name: np.array(v).reshape(3, 1, 1) / 255.0 for name, v in stats.items()}
+    result["count"] = np.array([frames])
+    return result
+
+
+def _image_histogram(frame: np.ndarray) -> np.ndarray:
+    stride = max(1, math.ceil(max(frame.shape[:2]) / _STATS_IMAGE_SIDE))
+    sample = frame[::stride, ::stride].reshape(-1, 3)
+    return np.stack([np.bincount(sample[:, c], minlength=256) for c in range(3)])
+
+
+def _stats_to_json(stats: Mapping[str, np.ndarray]) -> dict[str, list]:
+    return {
+        name: (
+            np.asarray(value).astype(np.int64) if name == "count" else np.asarray(value, np.float64)
+        ).tolist()
+        for name, value in stats.items()
+    }
+
+
+# --- video -----------------------------------------------------------------------------------
+class _SegmentEncoder:
+    """Streams one episode of one camera into an H.264 mp4 through ffmpeg."""
+
+    def __init__(self, path: Path, height: int, width: int, fps: int, crf: int, gop: int) -> None:
+        import imageio_ffmpeg
+
+        self.path = path
+        self._writer = imageio_ffmpeg.write_frames(
+            str(path),
+            (width, height),
+            fps=fps,
+            codec="libx264",
+            pix_fmt_in="rgb24",
+            pix_fmt_out="yuv420p",
+            quality=None,
+            macro_block_size=1,
+            ffmpeg_log_level="error",
+            output_params=["-crf", str(crf), "-g", str(gop), "-preset", "veryfast"],
+        )
+        self._writer.send(None)
+
+    def add(self, frame: np.ndarray) -> None:
+        self._writer.send(np.ascontiguousarray(frame))
+
+    def close(self) -> None:
+        self._writer.close()
+
+
+def _concatenate_videos(first: Path, second: Path, out: Path, scratch: Path) -> None:
+    import imageio_ffmpeg
+
+    listing = scratch / "concat.txt"
+    listing.write_text(f"file '{first.resolve()}'\nfile '{second.resolve()}'\n")
+    command = [
+        imageio_ffmpeg.get_ffmpeg_exe(),
+        "-y",
+        "-loglevel",
+        "error",
+        "-f",
+        "concat",
+        "-safe",
+        "0",
+        "-i",
+        str(listing),
+        "-c",
+        "copy",
+        "-movflags",
+        "+faststart",
+        str(out),
+    ]
+    result = subprocess.run(command, capture_output=True, text=True, check=False)
+    if result.returncode != 0:
+        raise RuntimeError(f"ffmpeg could not join {first} and {second}: {result.stderr.strip()}")
+
+
+# --- the writer ------------------------------------------------------------------------------
+@dataclass
+class _FilePointer:
+    chunk_index: int = 0
+    file_index: int = 0
+    frames: int = 0  # frames already in the current file
+
+    def advance(self) -> None:
+        self.frames = 0
+        self.file_index += 1
+        if self.file_index >= CHUNKS_SIZE:
+            self.chunk_index, self.file_index = self.chunk_index + 1, 0
+
+
+class LeRobotDatasetWriter:
+    """Writes a LeRobotDataset v3.0 folder: create, add frames, save episodes, finalize.
+
+    Args:
+        root: the dataset folder; created, and must not hold anything unless ``overwrite``.
+        fps: frames per second of the recording (the environments run at 50).
+        features: ``{key: {"dtype": ..., "shape": ..., "names": ...}}`` in LeRobot's form:
+            numbers as ``dtype`` ``float32``/``float64``/``int32``/``int64``/``bool`` with a
+            1-D shape, camera frames as ``dtype`` ``"video"`` with shape ``(H, W, 3)``
+            (even H and W). The keys ``timestamp``, ``frame_index``, ``episode_index``,
+            ``index`` and ``task_index`` are added by the writer.
+        robot_type: stored in ``info.json`` (LeRobot's SO-101 is ``"so101_follower"``).
+        overwrite: replace an existing dataset in ``root`` (a folder holding
+            ``meta/info.json``); any other non-empty folder is never deleted.
+        video_crf: H.264 quality (lower is better and larger).
+        video_gop: frames between key frames; short groups make random access cheap.
+
+    Raises:
+        FileExistsError: ``root`` is not empty and ``overwrite`` is false.
+        ValueError: a bad ``fps`` or feature declaration, or ``overwrite`` on a folder that
+            is not a dataset.
+        ImportError: pyarrow is missing (``pip install 'gym-soarm[dataset]'``).
+    """
+
+    def __init__(
+        self,
+        root: str | os.PathLike[str],
+        fps: int,
+        features: Mapping[str, Mapping[str, Any]],
+        robot_type: str | None = None,
+        overwrite: bool = False,
+        video_crf: int = 23,
+        video_gop: int = 2,
+    ) -> None:
+        self._pa = _require_pyarrow()
+        if isinstance(fps, bool) or not isinstance(fps, (int, np.integer)) or fps <= 0:
+            raise ValueError(f"fps must be a positive int (e.g. 50); got {fps!r}.")
+        for name, value in (("video_crf", video_crf), ("video_gop", video_gop)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+                raise ValueError(f"{name} must be a non-negative int; got {value!r}.")
+        if robot_type is not None and not isinstance(robot_type, str):
+            raise ValueError(f"robot_type must be a string or None; got {robot_type!r}.")
+        self.features = _parse_features(features)
+        self.root = Path(root)
+        _check_root(self.root, overwrite)
+
+        self.fps = int(fps)
+        self.robot_type = robot_type
+        self._crf, self._gop = int(video_crf), int(video_gop)
+        self._video_keys = [k for k, f in self.features.items() if f.is_video]
+        self._numeric_keys = [k for k, f in self.features.items() if not f.is_video]
+        self._scratch = self.root / _SCRATCH_DIR
+        self._scratch.mkdir(parents=True)
+        self._finalized = False
+
+        self._tasks: dict[str, int] = {}
+        self._episodes: list[dict[str, Any]] = []
+        self._total_frames = 0
+        self._data_file = _FilePointer()
+        self._video_files = {key: _FilePointer() for key in self._video_keys}
+        # Everything numeric ever saved (for exact dataset statistics) and image histograms.
+        self._numeric_history: dict[str, list[np.ndarray]] = {
+            key: [] for key in (*self._numeric_keys, *AUTO_FEATURES)
+        }
+        self._image_histograms = {key: np.zeros((3, 256), np.int64) for key in self._video_keys}
+        self._image_frames = dict.fromkeys(self._video_keys, 0)
+        self._reset_buffer()
+        self._write_info()
+
+    @classmethod
+    def create(
+        cls,
+        root: str | os.PathLike[str],
+        fps: int,
+        features: Mapping[str, Mapping[str, Any]],
+        robot_type: str | None = None,
+        overwrite: bool = False,
+        **kwargs: Any,
+    ) -> LeRobotDatasetWriter:
+        """Create an empty dataset in ``root`` (LeRobot's ``LeRobotDataset.create`` order)."""
+        return cls(root, fps, features, robot_type=robot_type, overwrite=overwrite, **kwargs)
+
+    # --- properties ----------------------------------------------------------------------
+    @property
+    def num_episodes(self) -> int:
+        """Episodes saved so far."""
+        return len(self._episodes)
+
+    @property
+    def num_frames(self) -> int:
+        """Frames in saved episodes."""
+        return self._total_frames
+
+    @property
+    def episode_buffer_size(self) -> int:
+        """Frames added to the episode being recorded and not saved yet."""
+        return len(self._buffer_tasks)
+
+    @property
+    def finalized(self) -> bool:
+        return self._finalized
+
+    # --- recording ---------------------------------------------------------------------
+    def add_frame(self, frame: Mapping[str, Any]) -> None:
+        """Add one frame to the current episode.
+
+        ``frame`` holds every declared feature and ``"task"`` (the task sentence).
+        Numbers are numpy arrays of exactly the declared dtype and shape; camera frames
+        are uint8 ``(H, W, 3)`` arrays. A bad frame raises before anything is recorded.
+
+        Raises:
+            ValueError: a missing or unknown key, a wrong dtype or shape, a non-finite
+                number or an empty task.
+            RuntimeError: the dataset was finalized.
+        """
+        self._check_open()
+        if not isinstance(frame, Mapping):
+            raise ValueError(f"frame must be a dict of features; got {type(frame).__name__}.")
+        expected = set(self.features) | {"task"}
+        missing = sorted(expected - set(frame))
+        unknown = sorted(set(frame) - expected)
+        if missing or unknown:
+            parts = []
+            if missing:
+                parts.append(f"missing {missing}")
+            if unknown:
+                parts.append(f"unknown {unknown}")
+            raise ValueError(
+                f"frame keys do not match the features: {'; '.join(parts)}. Expected exactly "
+                f"{sorted(expected)}."
+            )
+        task = frame["task"]
+        if not isinstance(task, str) or not task.strip():
+            raise ValueError(f"frame['task'] must be a non-empty sentence; got {task!r}.")
+        values = {key: self._check_value(self.features[key], frame[key]) for key in self.features}
+
+        # Valid: record it.
+        for key in self._numeric_keys:
+            self._buffer[key].append(values[key])
+        for key in self._video_keys:
+            image = values[key]
+            if key not in self._encoders:
+                self._encoders[key] = self._open_encoder(key)
+            self._encoders[key].add(image)
+            self._buffer_histograms[key] += _image_histogram(image)
+        self._buffer_tasks.append(task)
+
+    def _check_value(self, feature: Feature, value: Any) -> np.ndarray:
+        if feature.is_video:
+            if (
+                not isinstance(value, np.ndarray)
+                or value.dtype != np.uint8
+                or value.shape != feature.shape
+            ):
+                got = (
+                    f"{value.dtype} array of shape {value.shape}"
+                    if isinstance(value, np.ndarray)
+                    else type(value).__name__
+                )
+                hint = (
+                    " (channel-first; use np.moveaxis(frame, 0, -1))"
+                    if isinstance(value, np.ndarray) and value.shape[:1] == (3,)
+                    else ""
+                )
+                raise ValueError(
+                    f"{feature.key} must be a uint8 array of shape {feature.shape} (H, W, 3); "
+                    f"got {got}{hint}."
+                )
+            return value
+        if not isinstance(value, np.ndarray):
+            raise ValueError(
+                f"{feature.key} must be a numpy array of dtype {feature.dtype} and shape "
+                f"{feature.shape}; got {type(value).__name__}. Use np.asarray(value, "
+                f"dtype=np.{feature.dtype}).reshape({feature.size})."
+            )
+        if value.dtype != np.dtype(feature.dtype) or value.shape != feature.shape:
+            raise ValueError(
+                f"{feature.key} must be a numpy array of dtype {feature.dtype} and shape "
+                f"{feature.shape}; got dtype {value.dtype} and shape {value.shape}."
+            )
+        if value.dtype.kind == "f" and not np.isfinite(value).all():
+            raise ValueError(f"{feature.key} must be finite; got {value.tolist()!r}.")
+        return value.copy()
+
+    def clear_episode_buffer(self) -> None:
+        """Drop the frames of the episode being recorded (nothing on disk changes)."""
+        self._close_encoders()
+        for path in self._scratch.glob("*-segment.mp4"):
+            path.unlink()
+        self._reset_buffer()
+
+    def save_episode(self) -> int:
+        """Write the current episode to disk and return its ``episode_index``.
+
+        On return the folder is a complete dataset holding every saved episode. Ctrl-C
+        during the final file replacement is held back until the files agree.
+
+        Raises:
+            ValueError: no frame was added since the last save.
+            RuntimeError: the dataset was finalized.
+        """
+        self._check_open()
+        length = self.episode_buffer_size
+        if length == 0:
+            raise ValueError("no frames were added to this episode; call add_frame() first.")
+        self._close_encoders()
+        episode_index = len(self._episodes)
+        start = self._total_frames
+
+        for task in self._buffer_tasks:
+            self._tasks.setdefault(task, len(self._tasks))
+        frame_index = np.arange(length, dtype=np.int64)
+        columns: dict[str, np.ndarray] = {
+            key: np.stack(self._buffer[key]) for key in self._numeric_keys
+        }
+        columns["timestamp"] = (frame_index / self.fps).astype(np.float32)
+        columns["frame_index"] = frame_index
+        columns["episode_index"] = np.full(length, episode_index, np.int64)
+        columns["index"] = start + frame_index
+        columns["task_index"] = np.array([self._tasks[t] for t in self._buffer_tasks], np.int64)
+
+        stats: dict[str, dict[str, np.ndarray]] = {}
+        for key in self.features:
+            if self.features[key].is_video:
+                stats[key] = histogram_image_stats(self._buffer_histograms[key], length)
+            else:
+                stats[key] = numeric_stats(columns[key].reshape(length, -1))
+        for key in AUTO_FEATURES:
+            stats[key] = numeric_stats(columns[key].reshape(length, 1))
+
+        # Stage every new file in the scratch folder, then move them all into place.
+        staged: list[tuple[Path, Path]] = []
+        if self._data_file.frames and self._file_size_mb(self._data_path()) >= DATA_FILES_SIZE_MB:
+            self._data_file.advance()
+        data_path = self._data_path()
+        staged.append((self._stage_data(columns, data_path), data_path))
+        row: dict[str, Any] = {
+            "episode_index": episode_index,
+            "tasks": list(dict.fromkeys(self._buffer_tasks)),
+            "length": length,
+            "data/chunk_index": self._data_file.chunk_index,
+            "data/file_index": self._data_file.file_index,
+            "dataset_from_index": start,
+            "dataset_to_index": start + length,
+        }
+        for key in self._video_keys:
+            pointer = self._video_files[key]
+            if pointer.frames and self._file_size_mb(self._video_path(key)) >= VIDEO_FILES_SIZE_MB:
+                pointer.advance()
+            video_path = self._video_path(key)
+            segment = self._segment_path(key)
+            if pointer.frames:
+                joined = self._scratch / f"{_safe(key)}-joined.mp4"
+                _concatenate_videos(video_path, segment, joined, self._scratch)
+                segment.unlink()
+                staged.append((joined, video_path))
+            else:
+                staged.append((segment, video_path))
+            row[f"videos/{key}/chunk_index"] = pointer.chunk_index
+            row[f"videos/{key}/file_index"] = pointer.file_index
+            row[f"videos/{key}/from_timestamp"] = pointer.frames / self.fps
+            row[f"videos/{key}/to_timestamp"] = (pointer.frames + length) / self.fps
+        for key, feature_stats in stats.items():
+            for name, value in _stats_to_json(feature_stats).items():
+                row[f"stats/{key}/{name}"] = value
+        row["meta/episodes/chunk_index"] = 0
+        row["meta/episodes/file_index"] = 0
+
+        with _deferred_interrupt():
+            for source, target in staged:
+                target.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(source, target)
+            self._data_file.frames += length
+            for key in self._video_keys:
+                self._video_files[key].frames += length
+                self._image_histograms[key] += self._buffer_histograms[key]
+                self._image_frames[key] += length
+            for key, history in self._numeric_history.items():
+                history.append(columns[key].reshape(length, -1))
+            self._episodes.append(row)
+            self._total_frames += length
+            self._write_metadata()
+        self._reset_buffer()
+        return episode_index
+
+    def finalize(self) -> None:
+        """Finish the dataset: drop an unsaved episode, remove scratch files. Safe twice."""
+        if self._finalized:
+            return
+        if self.episode_buffer_size:
+            warnings.warn(
+                f"finalize() dropped {self.episode_buffer_size} frames of an episode that was "
+                "never saved; call save_episode() first to keep them.",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+        self.clear_episode_buffer()
+        shutil.rmtree(self._scratch, ignore_errors=True)
+        self._finalized = True
+
+    def __enter__(self) -> LeRobotDatasetWriter:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.finalize()
+
+    # --- helpers -----------------------------------------------------------------------
+    def _check_open(self) -> None:
+        if self._finalized:
+            raise RuntimeError(
+                f"the dataset in {str(self.root)!r} was finalized; create a new writer to record more."
+            )
+
+    def _reset_buffer(self) -> None:
+        self._buffer: dict[str, list[np.ndarray]] = {key: [] for key in self._numeric_keys}
+        self._buffer_tasks: list[str] = []
+        self._buffer_histograms = {key: np.zeros((3, 256), np.int64) for key in self._video_keys}
+        self._encoders: dict[str, _SegmentEncoder] = {}
+
+    def _close_encoders(self) -> None:
+        for encoder in getattr(self, "_encoders", {}).values():
+            encoder.close()
+        self._encoders = {}
+
+    def _open_encoder(self, key: str) -> _SegmentEncoder:
+        height, width, _ = self.features[key].shape
+        return _SegmentEncoder(
+            self._segment_path(key), height, width, self.fps, self._crf, self._gop
+        )
+
+    def _segment_path(self, key: str) -> Path:
+        return self._scratch / f"{_safe(key)}-segment.mp4"
+
+    def _data_path(self) -> Path:
+        pointer = self._data_file
+        return self.root / DATA_PATH.format(
+            chunk_index=pointer.chunk_index, file_index=pointer.file_index
+        )
+
+    def _video_path(self, key: str) -> Path:
+        pointer = self._video_files[key]
+        return self.root / VIDEO_PATH.format(
+            video_key=key, chunk_index=pointer.chunk_index, file_index=pointer.file_index
+        )
+
+    @staticmethod
+    def _file_size_mb(path: Path) -> float:
+        return path.stat().st_size / 1024**2
+
+    def _arrow_type(self, dtype: str, size: int) -> Any:
+        pa = self._pa
+        scalar = {
+            "float32": pa.float32(),
+            "float64": pa.float64(),
+            "int32": pa.int32(),
+            "int64": pa.int64(),
+            "bool": pa.bool_(),
+        }[dtype]
+        return scalar if size == 1 else pa.list_(scalar, size)
+
+    def _data_schema(self) -> Any:
+        pa = self._pa
+        fields = [
+            pa.field(key, self._arrow_type(self.features[key].dtype, self.features[key].size))
+            for key in self._numeric_keys
+        ]
+        fields += [
+            pa.field(key, self._arrow_type(dtype, 1)) for key, dtype in AUTO_FEATURES.items()
+        ]
+        return pa.schema(fields)
+
+    def _stage_data(self, columns: Mapping[str, np.ndarray], target: Path) -> Path:
+        pa = self._pa
+        import pyarrow.parquet as pq
+
+        schema = self._data_schema()
+        arrays = []
+        for field in schema:
+            values = columns[field.name]
+            if pa.types.is_fixed_size_list(field.type):
+                flat = pa.array(values.reshape(-1), type=field.type.value_type)
+                arrays.append(pa.FixedSizeListArray.from_arrays(flat, field.type.list_size))
+            else:
+                arrays.append(pa.array(values.reshape(-1), type=field.type))
+        table = pa.Table.from_arrays(arrays, schema=schema)
+        if self._data_file.frames:
+            table = pa.concat_tables([pq.read_table(target, schema=schema), table])
+        staged = self._scratch / "data.parquet"
+        pq.write_table(table, staged)
+        return staged
+
+    def _feature_info(self) -> dict[str, Any]:
+        info: dict[str, Any] = {}
+        for key, feature in self.features.items():
+            entry: dict[str, Any] = {
+                "dtype": feature.dtype,
+                "shape": list(feature.shape),
+                "names": list(feature.names) if feature.names is not None else None,
+            }
+            if feature.is_video:
+                height, width, channels = feature.shape
+                entry["info"] = {
+                    "video.height": height,
+                    "video.width": width,
+                    "video.codec": "h264",
+                    "video.pix_fmt": "yuv420p",
+                    "video.fps": self.fps,
+                    "video.channels": channels,
+                    "video.g": self._gop,
+                    "video.crf": self._crf,
+                    "has_audio": False,
+                    "is_depth_map": False,
+                }
+            info[key] = entry
+        for key, dtype in AUTO_FEATURES.items():
+            info[key] = {"dtype": dtype, "shape": [1], "names": None}
+        return info
+
+    def _write_info(self) -> None:
+        info = {
+            "codebase_version": CODEBASE_VERSION,
+            "fps": self.fps,
+            "features": self._feature_info(),
+            "total_episodes": len(self._episodes),
+            "total_frames": self._total_frames,
+            "total_tasks": len(self._tasks),
+            "chunks_size": CHUNKS_SIZE,
+            "data_files_size_in_mb": DATA_FILES_SIZE_MB,
+            "video_files_size_in_mb": VIDEO_FILES_SIZE_MB,
+            "data_path": DATA_PATH,
+            "video_path": VIDEO_PATH if self._video_keys else None,
+            "robot_type": self.robot_type,
+            "splits": {"train": f"0:{len(self._episodes)}"},
+        }
+        _write_json_atomically(self.root / INFO_PATH, info, self._scratch)
+
+    def _dataset_stats(self) -> dict[str, dict[str, list]]:
+        stats: dict[str, dict[str, list]] = {}
+        for key in self.features:
+            if self.features[key].is_video:
+                feature_stats = histogram_image_stats(
+                    self._image_histograms[key], self._image_frames[key]
+                )
+            else:
+                feature_stats = numeric_stats(np.concatenate(self._numeric_history[key]))
+            stats[key] = _stats_to_json(feature_stats)
+        for key in AUTO_FEATURES:
+            stats[key] = _stats_to_json(numeric_stats(np.concatenate(self._numeric_history[key])))
+        return stats
+
+    def _write_metadata(self) -> None:
+        pa = self._pa
+        import pyarrow.parquet as pq
+
+        # Tasks: the index column "task" as pandas writes it, so pandas.read_parquet
+        # returns the table indexed by the task sentence as LeRobot expects.
+        tasks = sorted(self._tasks.items(), key=lambda item: item[1])
+        pandas_metadata = {
+            "index_columns": ["task"],
+            "column_indexes": [
+                {
+                    "name": None,
+                    "field_name": None,
+                    "pandas_type": "unicode",
+                    "numpy_type": "object",
+                    "metadata": {"encoding": "UTF-8"},
+                }
+            ],
+            "columns": [
+                {
+                    "name": "task_index",
+                    "field_name": "task_index",
+                    "pandas_type": "int64",
+                    "numpy_type": "int64",
+                    "metadata": None,
+                },
+                {
+                    "name": "task",
+                    "field_name": "task",
+                    "pandas_type": "unicode",
+                    "numpy_type": "object",
+                    "metadata": None,
+                },
+            ],
+            "creator": {"library": "pyarrow", "version": pa.__version__},
+            "pandas_version": "2.2.0",
+        }
+        schema = pa.schema(
+            [pa.field("task_index", pa.int64()), pa.field("task", pa.string())],
+            metadata={"pandas": json.dumps(pandas_metadata)},
+        )
+        task_table = pa.Table.from_arrays(
+            [pa.array([i for _, i in tasks], pa.int64()), pa.array([t for t, _ in tasks])],
+            schema=schema,
+        )
+        episodes_table = pa.Table.from_pylist(self._episodes)
+        staged = [
+            (task_table, self.root / TASKS_PATH, "tasks.parquet"),
+            (
+                episodes_table,
+                self.root / EPISODES_PATH.format(chunk_index=0, file_index=0),
+                "episodes.parquet",
+            ),
+        ]
+        for table, target, name in staged:
+            path = self._scratch / name
+            pq.write_table(table, path)
+            target.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(path, target)
+        _write_json_atomically(self.root / STATS_PATH, self._dataset_stats(), self._scratch)
+        self._write_info()
+
+
+def _safe(key: str) -> str:
+    return key.replace("/", "_")
+
+
+def _write_json_atomically(path: Path, content: Any, scratch: Path) -> None:
+    staged = scratch / (path.name + ".staged")
+    staged.write_text(json.dumps(content, indent=4) + "\n")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    os.replace(staged, path)
+
+
+def load_info(root: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read ``meta/info.json`` of a dataset folder."""
+    return json.loads((Path(root) / INFO_PATH).read_text())
