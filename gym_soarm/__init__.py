@@ -32,9 +32,11 @@ _import_dm_control_without_gl()
 
 from gymnasium.envs.registration import register, registry  # noqa: E402
 
+from gym_soarm.display import DisplayUnavailableError  # noqa: E402
 from gym_soarm.env import SoArmEnv  # noqa: E402
 from gym_soarm.meshes import MeshError  # noqa: E402
 from gym_soarm.rendering import GLBackendError  # noqa: E402
+from gym_soarm.video import save_frames_to_mp4  # noqa: E402
 
 __version__ = "0.5.0"
 
@@ -64,4 +66,13 @@ def __getattr__(name: str) -> object:
     raise AttributeError(f"module 'gym_soarm' has no attribute {name!r}")
 
 
-__all__ = ["ENV_IDS", "GLBackendError", "MeshError", "SoArmEnv", "__version__", "make_expert"]
+__all__ = [
+    "ENV_IDS",
+    "DisplayUnavailableError",
+    "GLBackendError",
+    "MeshError",
+    "SoArmEnv",
+    "__version__",
+    "make_expert",
+    "save_frames_to_mp4",
+]

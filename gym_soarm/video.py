@@ -14,6 +14,14 @@ def save_frames_to_mp4(
 ) -> Path:
     """Encode RGB frames as an H.264 (yuv420p) MP4 file and return its path.
 
+    The file plays in web browsers. yuv420p needs even sizes, so an odd height or
+    width is padded by one edge pixel (never rescaled).
+
+    Example::
+
+        frames = [env.render() for _ in range(100)]  # render_mode="rgb_array"
+        gym_soarm.save_frames_to_mp4(frames, "videos/run.mp4", fps=50)
+
     Args:
         frames: a non-empty sequence of uint8 arrays of one shape (H, W, 3).
         path: the file to write; missing parent folders are created.
