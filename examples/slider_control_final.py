@@ -190,6 +190,7 @@ class SliderTeleop:
         """Step the simulation towards the slider targets, showing every frame."""
         import cv2
 
+        self.read_sliders()  # a slider moved in the same event batch as the key press
         action = self.targets.astype(np.float32)
         for _ in range(self.steps_per_press):
             info = self.env.step(action)[-1]
@@ -236,6 +237,7 @@ class SliderTeleop:
             redraw = False
             if key == SPACE_KEY:
                 self.step_to_sliders()
+                redraw = True
             elif key in RESET_KEYS:
                 self.reset()
                 redraw = True
