@@ -23,6 +23,9 @@ from gym_soarm.units import UNITS, joint_units
 OBS_TYPES = ("pixels", "pixels_agent_pos", "environment_state_agent_pos")
 REWARD_TYPES = ("dense", "sparse")
 RESET_OPTION_KEYS = ("cube_grid_position", "cube_rotation_deg")
+# LeRobot's evaluation (lerobot >= 0.6) marks the start of every rollout with this reset
+# option; it is accepted and has no effect.
+LEROBOT_ROLLOUT_OPTION = "lerobot_new_rollout"
 ENVIRONMENT_STATE_LAYOUT: tuple[tuple[str, int], ...] = (
     ("cube_pos", 3),
     ("cube_quat_wxyz", 4),
@@ -274,7 +277,7 @@ class SoArmEnv(gym.Env):
             raise ValueError(
                 f"options must be a dict with keys from {_choices(RESET_OPTION_KEYS)}; got {options!r}."
             )
-        unknown = sorted(set(options) - set(RESET_OPTION_KEYS))
+        unknown = sorted(set(options) - {*RESET_OPTION_KEYS, LEROBOT_ROLLOUT_OPTION})
         if unknown:
             raise ValueError(
                 f"unknown reset option(s) {unknown!r}; valid options are {_choices(RESET_OPTION_KEYS)}."

@@ -1,0 +1,121 @@
+"""The ``soarm`` EnvConfig: how LeRobot builds and reads gym_soarm environments."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from lerobot.configs.types import FeatureType, PolicyFeature
+from lerobot.envs.configs import EnvConfig
+
+import gym_soarm  # noqa: F401  (registers gym_soarm/<task> wherever this config is unpickled)
+from gym_soarm import constants
+from gym_soarm.env import resolve_camera_config
+from gym_soarm.units import UNITS
+
+ACTION = "action"
+OBS_STATE = "observation.state"
+OBS_ENV_STATE = "observation.environment_state"
+OBS_IMAGES = "observation.images"
+ENVIRONMENT_STATE_SIZE = 13
+OBS_TYPES: tuple[str, ...] = ("pixels_agent_pos", "environment_state_agent_pos", "pixels")
+TASKS: tuple[str, ...] = ("PickAndPlaceCube-v0", "LiftCube-v0")
+
+
+def _parse_cameras(camera_config: str) -> tuple[str, ...]:
+    if camera_config in constants.CAMERA_CONFIGS:
+        return resolve_camera_config(camera_config)
+    names = [name.strip() for name in camera_config.split(",") if name.strip()]
+    return resolve_camera_config(names)
+
+
+@EnvConfig.register_subclass("soarm")
+@dataclass
+class SoArmEnvConfig(EnvConfig):
+    """gym_soarm's SO-101 tasks for LeRobot (``--env.type=soarm``).
+
+    The gym id is ``gym_soarm/<task>``. Observations reach policies as
+    ``observation.state`` (the six joints, in ``units``), ``observation.images.<camera>``
+    per camera and, for ``obs_type="environment_state_agent_pos"``,
+    ``observation.environment_state`` (13 values). ``obs_type="pixels"`` gives policies
+    the cameras only.
+
+    Attributes:
+        task: ``"PickAndPlaceCube-v0"`` or ``"LiftCube-v0"``.
+        fps: control rate (the environment steps at 50 Hz).
+        episode_length: step limit; ``None`` keeps the registered one (400 / 250).
+        obs_type: ``"pixels_agent_pos"``, ``"environment_state_agent_pos"`` or ``"pixels"``.
+        camera_config: ``"front_only"``, ``"front_wrist"``, ``"all"`` or comma-separated
+            camera names (``front_camera,wrist_camera``).
+        observation_height: image height in pixels.
+        observation_width: image width in pixels.
+        render_mode: ``"rgb_array"`` for evaluation videos.
+        render_camera: the camera of those videos.
+        units: ``"lerobot"`` (body degrees, gripper 0-100, the real follower's units),
+            ``"lerobot_range"`` or ``"radians"``.
+    """
+
+    task: str | None = "PickAndPlaceCube-v0"
+    fps: int = constants.RENDER_FPS
+    episode_length: int | None = None
+    obs_type: str = "pixels_agent_pos"
+    camera_config: str = constants.DEFAULT_CAMERA_CONFIG
+    observation_height: int = 480
+    observation_width: int = 640
+    render_mode: str = "rgb_array"
+    render_camera: str = constants.DEFAULT_RENDER_CAMERA
+    units: str = "lerobot"
+    features: dict[str, PolicyFeature] = field(default_factory=dict)
+    features_map: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.task not in TASKS:
+            raise ValueError(f"task must be one of {', '.join(TASKS)}; got {self.task!r}.")
+        if self.obs_type not in OBS_TYPES:
+            raise ValueError(
+                f"obs_type must be one of {', '.join(OBS_TYPES)}; got {self.obs_type!r}."
+            )
+        if self.units not in UNITS:
+            raise ValueError(f"units must be one of {', '.join(UNITS)}; got {self.units!r}.")
+        cameras = _parse_cameras(self.camera_config)
+        n_joints = len(constants.JOINT_NAMES)
+        features: dict[str, PolicyFeature] = {
+            ACTION: PolicyFeature(type=FeatureType.ACTION, shape=(n_joints,))
+        }
+        features_map = {ACTION: ACTION}
+        if self.obs_type != "pixels":
+            features["agent_pos"] = PolicyFeature(type=FeatureType.STATE, shape=(n_joints,))
+            features_map["agent_pos"] = OBS_STATE
+        if self.obs_type == "environment_state_agent_pos":
+            features["environment_state"] = PolicyFeature(
+                type=FeatureType.ENV, shape=(ENVIRONMENT_STATE_SIZE,)
+            )
+            features_map["environment_state"] = OBS_ENV_STATE
+        else:
+            for camera in cameras:
+                key = f"pixels/{camera}"
+                features[key] = PolicyFeature(
+                    type=FeatureType.VISUAL,
+                    shape=(self.observation_height, self.observation_width, 3),
+                )
+                features_map[key] = f"{OBS_IMAGES}.{camera}"
+        self.features = features
+        self.features_map = features_map
+
+    @property
+    def gym_kwargs(self) -> dict[str, Any]:
+        # LeRobot reads cameras from the nested "pixels" dict of pixels_agent_pos, so the
+        # images-only obs_type is served by that observation too.
+        obs_type = "pixels_agent_pos" if self.obs_type == "pixels" else self.obs_type
+        kwargs: dict[str, Any] = {
+            "obs_type": obs_type,
+            "camera_config": list(_parse_cameras(self.camera_config)),
+            "observation_height": self.observation_height,
+            "observation_width": self.observation_width,
+            "render_mode": self.render_mode,
+            "render_camera": self.render_camera,
+            "units": self.units,
+        }
+        if self.episode_length is not None:
+            kwargs["max_episode_steps"] = self.episode_length
+        return kwargs
