@@ -2,19 +2,29 @@
 
 Only this module turns names into indices: ids are looked up once, at construction,
 and every accessor returns a fresh array (never a view the next step overwrites).
+
+The accessors run several times per environment step, so they read MuJoCo's arrays
+directly (views cached at construction) rather than through dm_control's wrappers.
 """
 
 from __future__ import annotations
+
+import logging
 
 import mujoco
 import numpy as np
 from dm_control import mujoco as dm_mujoco
 from dm_control.mujoco.wrapper import core as dm_core
+from dm_control.rl import control
 
 from gym_soarm import constants, model
 
+logger = logging.getLogger(__name__)
+_WARNING_NAMES: tuple[str, ...] = tuple(mujoco.mjtWarning.__members__)
+_RK4 = int(mujoco.mjtIntegrator.mjINT_RK4)
 
-def _quat_to_zaxis_abs_sum(quat: np.ndarray) -> float:
+
+def _quat_to_zaxis_abs_sum(quat: np.ndarray | list[float]) -> float:
     """Sum of |R[2, :]| for the rotation of a (w, x, y, z) quaternion.
 
     For a cube of half-size h, ``h`` times this sum is the height of its centre above
@@ -31,9 +41,14 @@ class SoArmPhysics(dm_mujoco.Physics):
     """Physics of the SO-101 on its table, with the cube and the goal pad."""
 
     @classmethod
-    def from_scene(cls) -> SoArmPhysics:
-        """A new physics instance of the packaged scene (the model is compiled once)."""
-        return cls.from_model(dm_core.MjModel(model.load_scene_model()))
+    def from_scene(cls, visual: str = "fast") -> SoArmPhysics:
+        """A new physics instance of the packaged scene (the model is compiled once).
+
+        Args:
+            visual: ``"fast"`` (simplified visual meshes) or ``"high"`` (the provider's
+                meshes). Both have the same physics; only rendering differs.
+        """
+        return cls.from_model(dm_core.MjModel(model.load_scene_model(visual)))
 
     def _reload_from_data(self, data):
         super()._reload_from_data(data)
@@ -41,6 +56,17 @@ class SoArmPhysics(dm_mujoco.Physics):
 
     def _cache_ids(self) -> None:
         m = self.model.ptr
+        d = self.data.ptr
+        # MuJoCo's own structs and array views, valid for the life of this data.
+        self._mj_model = m
+        self._mj_data = d
+        self._qpos = d.qpos
+        self._qvel = d.qvel
+        self._qacc = d.qacc
+        self._ctrl = d.ctrl
+        self._site_xpos = d.site_xpos
+        self._site_xmat = d.site_xmat
+        self._sensordata = d.sensordata
 
         def jid(name: str) -> int:
             return mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
@@ -74,27 +100,62 @@ class SoArmPhysics(dm_mujoco.Physics):
         )
         self._home_key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, constants.HOME_KEYFRAME)
 
+    # --- stepping --------------------------------------------------------------------
+    def step(self, nstep: int = 1) -> None:
+        """Advance the simulation by ``nstep`` physics steps.
+
+        Does what :meth:`dm_control.mujoco.Physics.step` does (with ``legacy_step``,
+        mj_step1 runs last so positions, sites and contacts match the new state; a new
+        MuJoCo warning raises :class:`dm_control.rl.control.PhysicsError`, or is logged
+        inside ``suppress_physics_errors()``), with less Python around the MuJoCo calls.
+        """
+        m, d = self._mj_model, self._mj_data
+        warnings = self._warnings
+        before = self._warnings_before
+        np.copyto(before, warnings)
+        if not self.legacy_step:
+            mujoco.mj_step(m, d, nstep)
+        elif m.opt.integrator != _RK4:
+            mujoco.mj_step2(m, d)
+            if nstep > 1:
+                mujoco.mj_step(m, d, nstep - 1)
+            mujoco.mj_step1(m, d)
+        else:
+            mujoco.mj_step(m, d, nstep)
+            mujoco.mj_step1(m, d)
+        if (warnings > before).any():
+            self._report_new_warnings()
+
+    def _report_new_warnings(self) -> None:
+        raised = self._warnings > self._warnings_before
+        # mjtWarning also lists mjNWARNING, the count, which has no counter of its own.
+        names = ", ".join(name for name, new in zip(_WARNING_NAMES, raised, strict=False) if new)
+        message = f"Physics state is invalid. Warning(s) raised: {names}"
+        if self._warnings_cause_exception:
+            raise control.PhysicsError(message)
+        logger.warning(message)
+
     # --- robot -------------------------------------------------------------------
     def joint_angles(self) -> np.ndarray:
         """The six joint positions in radians, in ``constants.JOINT_NAMES`` order."""
-        return self.data.qpos[self._arm_qpos_adr]
+        return self._qpos[self._arm_qpos_adr]
 
     def joint_velocities(self) -> np.ndarray:
         """The six joint velocities in rad/s."""
-        return self.data.qvel[self._arm_dof_adr]
+        return self._qvel[self._arm_dof_adr]
 
     def joint_targets(self) -> np.ndarray:
         """The six servo targets (the last action) in radians."""
-        return self.data.ctrl[self._actuator_ids].copy()
+        return self._ctrl[self._actuator_ids]
 
     def set_joint_targets(self, targets: np.ndarray) -> None:
         """Set the six servo targets in radians (no clipping here)."""
-        self.data.ctrl[self._actuator_ids] = targets
+        self._ctrl[self._actuator_ids] = targets
 
     def set_joint_angles(self, angles: np.ndarray) -> None:
         """Teleport the joints (used only inside a reset context)."""
-        self.data.qpos[self._arm_qpos_adr] = angles
-        self.data.qvel[self._arm_dof_adr] = 0.0
+        self._qpos[self._arm_qpos_adr] = angles
+        self._qvel[self._arm_dof_adr] = 0.0
 
     def control_range(self) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper servo target bounds in radians."""
@@ -110,35 +171,37 @@ class SoArmPhysics(dm_mujoco.Physics):
 
     def gripper_position(self) -> np.ndarray:
         """World position (m) of the ``gripperframe`` site, the tool centre point."""
-        return self.data.site_xpos[self._gripper_site].copy()
+        return self._site_xpos[self._gripper_site].copy()
 
     def gripper_orientation(self) -> np.ndarray:
         """World rotation matrix (3, 3) of the ``gripperframe`` site."""
-        return self.data.site_xmat[self._gripper_site].reshape(3, 3).copy()
+        return self._site_xmat[self._gripper_site].reshape(3, 3).copy()
 
     def grasp_center(self) -> np.ndarray:
         """World position (m) where a held cube's centre sits, between the jaws."""
-        return self.data.site_xpos[self._grasp_site].copy()
+        return self._site_xpos[self._grasp_site].copy()
 
     def jaw_touch(self) -> np.ndarray:
         """Normal force (N) sensed by the fixed and the moving jaw pad."""
-        return self.data.sensordata[self._touch_adr].copy()
+        return self._sensordata[self._touch_adr]
 
     def jaw_contacts(self) -> tuple[bool, bool]:
         """Whether the fixed and the moving jaw pad each touch the cube."""
-        d = self.data.ptr
+        d = self._mj_data
         n = d.ncon
         if n == 0:
             return False, False
-        pairs = d.contact.geom[:n]
         cube = self._cube_geom
-        touching = []
-        for pad in self._pad_geoms:
-            hit = ((pairs[:, 0] == pad) & (pairs[:, 1] == cube)) | (
-                (pairs[:, 0] == cube) & (pairs[:, 1] == pad)
-            )
-            touching.append(bool(hit.any()))
-        return touching[0], touching[1]
+        fixed_pad, moving_pad = self._pad_geoms
+        fixed = moving = False
+        # A plain loop: there are only a handful of contacts, and numpy costs more.
+        for geom1, geom2 in d.contact.geom[:n].tolist():
+            other = geom2 if geom1 == cube else geom1 if geom2 == cube else -1
+            if other == fixed_pad:
+                fixed = True
+            elif other == moving_pad:
+                moving = True
+        return fixed, moving
 
     def cube_grasped(self) -> bool:
         """True when both jaw pads touch the cube."""
@@ -154,12 +217,12 @@ class SoArmPhysics(dm_mujoco.Physics):
     def cube_position(self) -> np.ndarray:
         """World position (m) of the cube's centre."""
         a = self._cube_qpos_adr
-        return self.data.qpos[a : a + 3].copy()
+        return self._qpos[a : a + 3].copy()
 
     def cube_quaternion(self) -> np.ndarray:
         """Cube orientation as a (w, x, y, z) quaternion."""
         a = self._cube_qpos_adr + 3
-        return self.data.qpos[a : a + 4].copy()
+        return self._qpos[a : a + 4].copy()
 
     def cube_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """Cube position (m) and (w, x, y, z) quaternion."""
@@ -168,34 +231,36 @@ class SoArmPhysics(dm_mujoco.Physics):
     def cube_velocity(self) -> np.ndarray:
         """Cube linear velocity (m/s) in the world frame."""
         a = self._cube_dof_adr
-        return self.data.qvel[a : a + 3].copy()
+        return self._qvel[a : a + 3].copy()
 
     def cube_bottom_height(self) -> float:
         """Height (m) of the cube's lowest corner above the table top."""
-        centre_z = self.data.qpos[self._cube_qpos_adr + 2]
-        reach = constants.CUBE_HALF_M * _quat_to_zaxis_abs_sum(self.cube_quaternion())
+        a = self._cube_qpos_adr
+        centre_z, *quat = self._qpos[a + 2 : a + 7].tolist()
+        reach = constants.CUBE_HALF_M * _quat_to_zaxis_abs_sum(quat)
         return float(centre_z - reach - constants.TABLE_TOP_Z_M)
 
     def set_cube_pose(self, position: np.ndarray, quaternion: np.ndarray) -> None:
         """Teleport the cube (used only inside a reset context)."""
         a = self._cube_qpos_adr
-        self.data.qpos[a : a + 3] = position
-        self.data.qpos[a + 3 : a + 7] = quaternion
+        self._qpos[a : a + 3] = position
+        self._qpos[a + 3 : a + 7] = quaternion
         d = self._cube_dof_adr
-        self.data.qvel[d : d + 6] = 0.0
+        self._qvel[d : d + 6] = 0.0
 
     def goal_position(self) -> np.ndarray:
         """World position (m) of the goal pad's top centre."""
-        return self.data.site_xpos[self._goal_site].copy()
+        return self._site_xpos[self._goal_site].copy()
 
     # --- whole state -----------------------------------------------------------------
     def reset_to_home(self) -> None:
         """Load the ``home`` keyframe (all joints at 0 rad) into qpos, qvel and ctrl."""
-        mujoco.mj_resetDataKeyframe(self.model.ptr, self.data.ptr, self._home_key)
+        mujoco.mj_resetDataKeyframe(self._mj_model, self._mj_data, self._home_key)
 
     def state_is_finite(self) -> bool:
         """False when positions, velocities or accelerations hold NaN or inf."""
-        d = self.data.ptr
         return bool(
-            np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all() and np.isfinite(d.qacc).all()
+            np.isfinite(self._qpos).all()
+            and np.isfinite(self._qvel).all()
+            and np.isfinite(self._qacc).all()
         )

@@ -1,0 +1,164 @@
+"""Lighter SO-101 visual meshes for ``render_quality="fast"``.
+
+The provider's STL files are CAD exports: 322,564 triangles in all (about 400,000 per
+frame once the servo mesh is repeated), most of them far smaller than a pixel. A
+software rasteriser spends most of a frame on them. For the ``fast`` quality each mesh
+is rebuilt once:
+
+1. vertices closer than :data:`WELD_CELL_M` are merged (vertex clustering on a
+   0.5 mm grid), which removes the sub-millimetre tessellation;
+2. quadric edge-collapse decimation (the ``fast-simplification`` package) removes
+   :data:`DECIMATION_REDUCTION` of the triangles that remain.
+
+About 14 % of the triangles survive and every part keeps its shape to about a millimetre
+(``docs/quality_fast_vs_high.png`` shows both). Physics never sees
+these meshes: the visual geoms have no mass and no collisions.
+
+The results are cached in the user cache directory (see :mod:`gym_soarm.cache`),
+keyed by each source file's SHA-256 and the settings above, so the work is done once
+per machine.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.metadata
+import logging
+
+import numpy as np
+
+from gym_soarm import cache, meshes
+
+logger = logging.getLogger(__name__)
+
+WELD_CELL_M = 0.0005
+DECIMATION_REDUCTION = 0.5
+# Bump when the algorithm changes, so cached meshes of the old one are not reused.
+ALGORITHM_VERSION = 1
+
+_STL_HEADER_BYTES = 80
+_STL_RECORD = np.dtype([("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attr", "<u2")])
+
+
+def stl_triangle_count(data: bytes) -> int:
+    """Number of triangles in a binary STL file.
+
+    Raises:
+        ValueError: ``data`` is not a binary STL file (or is truncated).
+    """
+    if len(data) < _STL_HEADER_BYTES + 4:
+        raise ValueError(f"expected a binary STL file; got {len(data)} bytes")
+    count = int.from_bytes(data[_STL_HEADER_BYTES : _STL_HEADER_BYTES + 4], "little")
+    expected = _STL_HEADER_BYTES + 4 + count * _STL_RECORD.itemsize
+    if len(data) != expected:
+        raise ValueError(
+            f"expected a binary STL file of {expected} bytes for {count} triangles; "
+            f"got {len(data)} bytes"
+        )
+    return count
+
+
+def parse_binary_stl(data: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (n, 3) float64 and triangles (m, 3) int64 of a binary STL file.
+
+    Identical corner positions become one vertex, so the mesh is indexed.
+
+    Raises:
+        ValueError: ``data`` is not a binary STL file.
+    """
+    count = stl_triangle_count(data)
+    records = np.frombuffer(data, dtype=_STL_RECORD, count=count, offset=_STL_HEADER_BYTES + 4)
+    corners = records["vertices"].reshape(-1, 3)
+    vertices, index = np.unique(corners, axis=0, return_inverse=True)
+    return vertices.astype(np.float64), index.reshape(-1, 3).astype(np.int64)
+
+
+def write_binary_stl(vertices: np.ndarray, triangles: np.ndarray) -> bytes:
+    """A binary STL file of the indexed mesh, with unit face normals."""
+    corners = np.asarray(vertices, dtype=np.float64)[np.asarray(triangles)]
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    lengths = np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = np.divide(normals, lengths, out=np.zeros_like(normals), where=lengths > 0)
+    records = np.zeros(len(corners), dtype=_STL_RECORD)
+    records["normal"] = normals
+    records["vertices"] = corners
+    header = b"gym_soarm simplified visual mesh".ljust(_STL_HEADER_BYTES, b" ")
+    return header + len(records).to_bytes(4, "little") + records.tobytes()
+
+
+def weld_vertices(
+    vertices: np.ndarray, triangles: np.ndarray, cell_m: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Merge the vertices that share a ``cell_m`` grid cell into their mean.
+
+    Triangles that collapse (two corners in one cell) and repeated triangles are
+    dropped; unused vertices are removed.
+    """
+    keys = np.floor(vertices / cell_m).astype(np.int64)
+    _, cluster = np.unique(keys, axis=0, return_inverse=True)
+    cluster = cluster.ravel()
+    n_clusters = int(cluster.max()) + 1
+    merged = np.zeros((n_clusters, 3))
+    np.add.at(merged, cluster, vertices)
+    merged /= np.bincount(cluster, minlength=n_clusters)[:, None]
+    tris = cluster[triangles]
+    keep = (tris[:, 0] != tris[:, 1]) & (tris[:, 1] != tris[:, 2]) & (tris[:, 0] != tris[:, 2])
+    tris = tris[keep]
+    _, first = np.unique(np.sort(tris, axis=1), axis=0, return_index=True)
+    tris = tris[np.sort(first)]
+    used = np.unique(tris)
+    renumber = np.full(n_clusters, -1, dtype=np.int64)
+    renumber[used] = np.arange(len(used))
+    return merged[used], renumber[tris]
+
+
+def simplify_stl(data: bytes) -> bytes:
+    """The simplified version of one STL file (welded, then decimated)."""
+    import fast_simplification
+
+    vertices, triangles = parse_binary_stl(data)
+    vertices, triangles = weld_vertices(vertices, triangles, WELD_CELL_M)
+    vertices, triangles = fast_simplification.simplify(
+        vertices, triangles.astype(np.int32), target_reduction=DECIMATION_REDUCTION
+    )
+    return write_binary_stl(vertices, triangles)
+
+
+def settings_tag() -> str:
+    """Everything besides the source bytes that the simplified meshes depend on."""
+    try:
+        library = importlib.metadata.version("fast-simplification")
+    except importlib.metadata.PackageNotFoundError:
+        library = "missing"
+    return (
+        f"v{ALGORITHM_VERSION} weld={WELD_CELL_M!r} reduction={DECIMATION_REDUCTION!r} "
+        f"fast-simplification={library}"
+    )
+
+
+@functools.lru_cache(maxsize=1)
+def simplified_meshes() -> dict[str, bytes]:
+    """``{file name: STL bytes}`` of every SO-101 mesh, simplified (cached on disk).
+
+    Raises:
+        gym_soarm.meshes.MeshError: a provider mesh is missing or changed.
+    """
+    sources = meshes.load_meshes()  # checks every SHA-256
+    tag = settings_tag()
+    result: dict[str, bytes] = {}
+    for name in sources:
+        key = cache.digest(meshes.MESH_SHA256[name], tag)[:24]
+        cache_name = f"meshes/{name.removesuffix('.stl')}-{key}.stl"
+        data = cache.read(cache_name)
+        if data is not None:
+            try:
+                if stl_triangle_count(data) == 0:
+                    raise ValueError("no triangles")
+            except ValueError as exc:
+                logger.info("discarding the damaged cached mesh %s (%s)", cache_name, exc)
+                data = None
+        if data is None:
+            data = simplify_stl(sources[name])
+            cache.write(cache_name, data)
+        result[name] = data
+    return result
