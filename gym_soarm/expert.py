@@ -55,6 +55,9 @@ class ExpertConfig:
     """Gap left between the fixed jaw and the cube while descending; closing closes it."""
     carry_height_m: float = 0.075
     """Height of the cube's centre while carrying it (and of the lift target)."""
+    lift_reach_m: tuple[float, float] = (0.13, 0.20)
+    """While lifting, the cube also moves to this range of horizontal distances from the
+    shoulder pan axis, where the arm holds it high with the jaws still vertical."""
     place_clearance_m: float = 0.003
     """Height of the cube's bottom above the pad when the jaws release it."""
     retreat_height_m: float = 0.10
@@ -72,9 +75,18 @@ class ExpertConfig:
     lower_steps: int = 35
     release_steps: int = 12
     retreat_steps: int = 25
+    hold_steps: int = 25
+    """Lift task: how long to hold the cube up after the lift."""
+    rise_steps: int = 20
+    """Before a new grasp: open the jaws and rise to the hover height."""
+    max_regrasps: int = 2
 
 
 DEFAULT_CONFIG = ExpertConfig()
+
+# Elbow up, wrist bent down (arm joints, rad): where inverse kinematics starts from,
+# turned towards the target by the shoulder pan.
+READY_POSTURE_RAD = np.array([0.0, 0.0, 0.6, 1.1, 0.0])
 
 
 def minimum_jerk(fraction: float) -> float:
@@ -103,17 +115,20 @@ def cube_yaw(physics: SoArmPhysics) -> float:
 class ArmKinematics:
     """Inverse kinematics of the five arm joints on a private copy of the model's data.
 
-    Damped least squares on the ``grasp_center`` site Jacobian (``mujoco.mj_jacSite``),
-    with every iterate clipped to the joint limits. Forward kinematics come from
-    ``mujoco.mj_kinematics`` on the same private data.
+    Damped least squares on the ``grasp_center`` site Jacobian (``mujoco.mj_jacSite``)
+    with two priorities: the site's position first, its orientation in what freedom the
+    position leaves. Where the wrist cannot point the jaws straight down (high above the
+    far cells) the jaws tilt, but the site still follows its path. A joint at a limit that
+    the step would push further is held there. Forward kinematics come from
+    ``mujoco.mj_kinematics`` on the same private data, never from the environment's.
     """
 
     def __init__(
         self,
         model: mujoco.MjModel,
-        rotation_weight_m: float = 0.1,
-        damping: float = 0.01,
-        max_iterations: int = 60,
+        damping: float = 0.005,
+        rotation_damping: float = 0.05,
+        max_iterations: int = 50,
     ) -> None:
         self._model = model
         self._data = mujoco.MjData(model)
@@ -122,11 +137,49 @@ class ArmKinematics:
         self._qpos_adr = model.jnt_qposadr[joint_ids]
         self._dof_adr = model.jnt_dofadr[joint_ids]
         self.lower, self.upper = model.jnt_range[joint_ids].T.copy()
-        self._rotation_weight = rotation_weight_m
-        self._damping = damping
+        self._damping = damping**2 * np.eye(3)
+        self._rotation_damping = rotation_damping**2 * np.eye(3)
         self._max_iterations = max_iterations
         self._jacp = np.zeros((3, model.nv))
         self._jacr = np.zeros((3, model.nv))
+        # The shoulder pan's axis and the direction the arm points at zero pan.
+        pan = joint_ids[constants.ARM_JOINT_NAMES.index("shoulder_pan")]
+        self._set(np.zeros(len(joint_ids)))
+        self._pan_anchor = self._data.xanchor[pan].copy()
+        self._pan_axis = self._data.xaxis[pan].copy()
+        self._pan_zero = self._data.site_xpos[self._site] - self._pan_anchor
+
+    def within_reach(self, position: np.ndarray, reach: tuple[float, float]) -> np.ndarray:
+        """``position`` moved along the horizontal radius from the shoulder pan axis so
+        that its distance from the axis lies within ``reach`` (min, max) metres."""
+        position = np.array(position, dtype=np.float64)
+        radial = position[:2] - self._pan_anchor[:2]
+        radius = float(np.hypot(*radial))
+        if radius > 0.0:
+            wanted = min(max(radius, reach[0]), reach[1])
+            position[:2] = self._pan_anchor[:2] + radial * (wanted / radius)
+        return position
+
+    def radius(self, position: np.ndarray) -> float:
+        """Horizontal distance (m) of ``position`` from the shoulder pan axis."""
+        return float(np.hypot(*(np.asarray(position)[:2] - self._pan_anchor[:2])))
+
+    def bearing(self, position: np.ndarray) -> float:
+        """Direction (rad, about the world z axis) of ``position`` from the pan axis."""
+        offset = np.asarray(position)[:2] - self._pan_anchor[:2]
+        return math.atan2(offset[1], offset[0])
+
+    def cylindrical_point(self, radius: float, bearing: float, height: float) -> np.ndarray:
+        """The world point at ``radius`` and ``bearing`` from the pan axis, at ``height``."""
+        x = self._pan_anchor[0] + radius * math.cos(bearing)
+        y = self._pan_anchor[1] + radius * math.sin(bearing)
+        return np.array([x, y, height])
+
+    def pan_towards(self, position: np.ndarray) -> float:
+        """Shoulder pan angle (rad) that turns the arm towards ``position``."""
+        target = np.asarray(position) - self._pan_anchor
+        sine = float(self._pan_axis @ np.cross(self._pan_zero, target))
+        return math.atan2(sine, float(self._pan_zero[:2] @ target[:2]))
 
     def _set(self, arm_q: np.ndarray) -> None:
         self._data.qpos[self._qpos_adr] = arm_q
@@ -140,10 +193,24 @@ class ArmKinematics:
             self._data.site_xmat[self._site].reshape(3, 3).copy(),
         )
 
+    def _step(
+        self, jacp: np.ndarray, jacr: np.ndarray, dp: np.ndarray, dr: np.ndarray
+    ) -> np.ndarray:
+        """One prioritised damped-least-squares step: position, then orientation."""
+        step = jacp.T @ np.linalg.solve(jacp @ jacp.T + self._damping, dp)
+        # Orientation moves only within the exact null space of the position Jacobian,
+        # and more heavily damped: where the jaws cannot point down, they tilt quietly.
+        nullspace = np.eye(jacp.shape[1]) - np.linalg.pinv(jacp, rcond=1e-6) @ jacp
+        jacr_null = jacr @ nullspace
+        secondary = jacr_null.T @ np.linalg.solve(
+            jacr_null @ jacr_null.T + self._rotation_damping, dr - jacr @ step
+        )
+        return step + nullspace @ secondary
+
     def solve(
         self, start: np.ndarray, position: np.ndarray, rotation: np.ndarray
     ) -> tuple[np.ndarray, float, float]:
-        """Joint angles placing ``grasp_center`` at ``position`` with ``rotation``.
+        """Joint angles placing ``grasp_center`` at ``position``, turned towards ``rotation``.
 
         Args:
             start: five arm joint angles (rad) to start the iteration from.
@@ -151,13 +218,11 @@ class ArmKinematics:
             rotation: target site rotation matrix (3, 3, world frame).
 
         Returns:
-            The five joint angles, the remaining position error (m) and the remaining
-            rotation error (rad).
+            The five joint angles (within their limits), the remaining position error
+            (m) and the remaining rotation error (rad).
         """
         q = np.clip(np.asarray(start, dtype=np.float64), self.lower, self.upper)
         model, data, site = self._model, self._data, self._site
-        weight = self._rotation_weight
-        damping = self._damping**2 * np.eye(6)
         position_error = rotation_error = math.inf
         for _ in range(self._max_iterations):
             self._set(q)
@@ -174,16 +239,23 @@ class ArmKinematics:
                 break
             mujoco.mj_comPos(model, data)
             mujoco.mj_jacSite(model, data, self._jacp, self._jacr, site)
-            jac = np.vstack([self._jacp[:, self._dof_adr], weight * self._jacr[:, self._dof_adr]])
-            error = np.concatenate([dp, weight * dr])
-            step = jac.T @ np.linalg.solve(jac @ jac.T + damping, error)
+            jacp = self._jacp[:, self._dof_adr]
+            jacr = self._jacr[:, self._dof_adr]
+            step = self._step(jacp, jacr, dp, dr)
+            # Hold the joints that sit at a limit and would be pushed past it.
+            blocked = ((q <= self.lower) & (step < 0)) | ((q >= self.upper) & (step > 0))
+            if blocked.any():
+                free = (~blocked).astype(np.float64)
+                step = self._step(jacp * free, jacr * free, dp, dr) * free
             q = np.clip(q + step, self.lower, self.upper)
+            if float(np.abs(step).max()) < 1e-7:
+                break
         return q, position_error, rotation_error
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(frozen=True)
 class _Phase:
-    """One segment of the motion: a name, a length and how to build its targets."""
+    """One segment of the script: its name, its length in steps and what starts it."""
 
     name: str
     steps: int
@@ -193,8 +265,15 @@ class _Phase:
 class ScriptedExpert:
     """State-reading scripted policy for one SO-101 environment (base of both tasks).
 
-    Call :meth:`reset` after every ``env.reset(...)`` and ``expert(obs, info)`` for each
-    action. The observation is not used: the expert reads ``env.unwrapped.physics``.
+    Call :meth:`reset` after every ``env.reset(...)`` (the expert also restarts by itself
+    when it sees the simulation clock go back) and ``expert(obs, info)`` for each action.
+    Observations are not used: the expert reads ``env.unwrapped.physics``.
+
+    Each phase moves the servo targets from where the previous phase left them along a
+    minimum-jerk profile: in joint space for the approach, in a straight line of the
+    ``grasp_center`` site for every other arm motion. When a grasp fails (the jaws closed
+    on nothing, or the cube fell) the expert opens, rises and tries again, at most
+    ``config.max_regrasps`` times.
     """
 
     def __init__(self, env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> None:
@@ -203,172 +282,234 @@ class ScriptedExpert:
         physics: SoArmPhysics = self.env.physics
         self._kinematics = ArmKinematics(physics.model.ptr)
         self._n_arm = len(constants.ARM_JOINT_NAMES)
-        self._ready = self._ready_posture()
-        self._phases: list[_Phase] = []
+        self._roll = constants.ARM_JOINT_NAMES.index("wrist_roll")
+        self._plan: list[_Phase] = []
         self._phase_index = 0
         self._phase_step = 0
+        self._time = -math.inf
+        self._regrasps = 0
         self._command = np.zeros(len(constants.JOINT_NAMES))
         self._segment: Callable[[float], np.ndarray] | None = None
         self._gripper_from = self._gripper_to = 0.0
-        self._grasp_yaw = 0.0
-        self._cube_in_site = np.zeros(3)
+        self._yaw = 0.0
+        self._grasp_point = np.zeros(3)
+        self._cube_offset = np.zeros(3)
 
     # --- public API ------------------------------------------------------------------
     @property
     def phase(self) -> str:
-        """Name of the current phase (``"done"`` once the script has run out)."""
-        if self._phase_index >= len(self._phases):
+        """Name of the phase the next action belongs to (``"done"`` after the script)."""
+        if self._phase_index >= len(self._plan):
             return "done"
-        return self._phases[self._phase_index].name
+        return self._plan[self._phase_index].name
+
+    @property
+    def regrasps(self) -> int:
+        """How many times this episode's grasp has been retried."""
+        return self._regrasps
 
     def reset(self) -> None:
-        """Start a new script from the environment's current (just reset) state."""
-        self._command = self.env.physics.joint_angles()
-        self._phases = self._build_phases()
+        """Start the script again from the environment's current (just reset) state."""
+        physics = self.env.physics
+        self._time = physics.data.time
+        self._command = physics.joint_angles()
+        self._regrasps = 0
+        self._plan = self._grasp_phases() + self._after_grasp_phases()
         self._phase_index = 0
-        self._phase_step = 0
-        self._segment = None
         self._begin_phase()
 
     def __call__(self, obs: Any = None, info: dict[str, Any] | None = None) -> np.ndarray:
-        """The next action: six joint targets (rad) as float32."""
-        if not self._phases:
-            raise RuntimeError("call expert.reset() after env.reset() before asking for actions")
-        if self._phase_index < len(self._phases):
-            phase = self._phases[self._phase_index]
+        """The next action: six servo targets in radians (float32), gripper last."""
+        now = self.env.physics.data.time
+        if not self._plan or now < self._time:
+            self.reset()
+        self._time = now
+        if self._phase_index < len(self._plan):
+            phase = self._plan[self._phase_index]
             self._phase_step += 1
             fraction = minimum_jerk(self._phase_step / phase.steps)
             if self._segment is not None:
                 self._command[: self._n_arm] = self._segment(fraction)
-            self._command[self._n_arm] = self._gripper_from + fraction * (
-                self._gripper_to - self._gripper_from
-            )
+            gripper = self._gripper_from + fraction * (self._gripper_to - self._gripper_from)
+            self._command[self._n_arm] = gripper
             if self._phase_step >= phase.steps:
                 self._phase_index += 1
-                self._phase_step = 0
                 self._begin_phase()
         return self._command.astype(np.float32)
 
-    # --- phases ------------------------------------------------------------------------
-    def _build_phases(self) -> list[_Phase]:
+    # --- the script ----------------------------------------------------------------------
+    def _grasp_phases(self) -> list[_Phase]:
+        c = self.config
+        return [
+            _Phase("approach", c.approach_steps, self._begin_approach),
+            _Phase("descend", c.descend_steps, self._begin_descend),
+            _Phase("close", c.close_steps, self._begin_close),
+        ]
+
+    def _after_grasp_phases(self) -> list[_Phase]:
         raise NotImplementedError
 
     def _begin_phase(self) -> None:
-        if self._phase_index < len(self._phases):
-            self._phase_step = 0
-            self._phases[self._phase_index].begin()
+        self._phase_step = 0
+        if self._phase_index < len(self._plan):
+            self._plan[self._phase_index].begin()
 
+    def _holding(self) -> bool:
+        """True if the cube is in the jaws; otherwise schedules a new grasp (if allowed)."""
+        if self.env.physics.cube_grasped() or self._regrasps >= self.config.max_regrasps:
+            return True
+        self._regrasps += 1
+        retry = [_Phase("rise", self.config.rise_steps, self._begin_rise), *self._grasp_phases()]
+        self._plan[self._phase_index : self._phase_index] = retry
+        self._begin_phase()
+        return False
+
+    # --- motions --------------------------------------------------------------------------
     def _gripper(self, target: float) -> None:
         self._gripper_from = float(self._command[self._n_arm])
         self._gripper_to = target
 
-    def _hold(self) -> None:
+    def _hold_arm(self) -> None:
         self._segment = None
 
     def _joint_move(self, target: np.ndarray) -> None:
-        """Move the arm in joint space, from the current command to ``target``."""
+        """Move the arm in joint space from the current targets to ``target``."""
         start = self._command[: self._n_arm].copy()
         self._segment = lambda s: start + s * (target - start)
 
-    def _line_move(self, position: np.ndarray, yaw: float) -> None:
-        """Move ``grasp_center`` in a straight line to ``position``, jaws down at ``yaw``."""
-        arm = self._command[: self._n_arm].copy()
-        start, _ = self._kinematics.site_pose(arm)
-        rotation = _downward_rotation(yaw)
-        guess = [arm]
+    def _path_move(self, path: Callable[[float], tuple[np.ndarray, float]]) -> None:
+        """Move ``grasp_center`` along ``path(s) -> (position, yaw)`` for s from 0 to 1.
+
+        The jaws point down wherever the wrist allows it, turned to the path's yaw about
+        the vertical. Each solve starts from the previous one, so the joints move smoothly.
+        """
+        guess = [self._command[: self._n_arm].copy()]
 
         def segment(s: float) -> np.ndarray:
-            q, _, _ = self._kinematics.solve(guess[0], start + s * (position - start), rotation)
+            position, yaw = path(s)
+            q, _, _ = self._kinematics.solve(guess[0], position, _downward_rotation(yaw))
             guess[0] = q
             return q
 
         self._segment = segment
 
-    # --- shared phase builders --------------------------------------------------------------
-    def _ready_posture(self) -> np.ndarray:
-        """Elbow up, wrist bent down: the posture every IK solve starts from."""
-        return np.array([0.0, 0.0, 0.6, 1.1, 0.0])
+    def _line_move(self, position: np.ndarray, yaw: float) -> None:
+        """Move ``grasp_center`` in a straight line to ``position``, turning to ``yaw``."""
+        start, _ = self._kinematics.site_pose(self._command[: self._n_arm])
+        start_yaw, self._yaw = self._yaw, yaw
+        self._path_move(
+            lambda s: (start + s * (position - start), start_yaw + s * (yaw - start_yaw))
+        )
 
-    def _solve_down(self, position: np.ndarray, yaw: float, start: np.ndarray) -> np.ndarray:
-        q, _, _ = self._kinematics.solve(start, position, _downward_rotation(yaw))
-        return q
+    def _arc_move(self, position: np.ndarray) -> None:
+        """Carry ``grasp_center`` to ``position`` round the shoulder pan axis.
+
+        Distance from the axis, bearing and height change linearly, so the path keeps
+        clear of the base, and the jaws turn with the bearing so that the wrist roll
+        stays where it is.
+        """
+        kinematics = self._kinematics
+        start, _ = kinematics.site_pose(self._command[: self._n_arm])
+        r0, r1 = kinematics.radius(start), kinematics.radius(position)
+        b0 = kinematics.bearing(start)
+        turn = math.remainder(kinematics.bearing(position) - b0, math.tau)
+        z0, z1 = start[2], position[2]
+        start_yaw = self._yaw
+        self._yaw = start_yaw + turn
+
+        def path(s: float) -> tuple[np.ndarray, float]:
+            return kinematics.cylindrical_point(
+                r0 + s * (r1 - r0), b0 + s * turn, z0 + s * (z1 - z0)
+            ), start_yaw + s * turn
+
+        self._path_move(path)
+
+    def _seed_towards(self, position: np.ndarray) -> np.ndarray:
+        """An elbow-up, wrist-down posture turned towards ``position``: the IK start."""
+        seed = READY_POSTURE_RAD.copy()
+        seed[0] = self._kinematics.pan_towards(position)
+        return seed
 
     def _choose_grasp_yaw(self, position: np.ndarray) -> float:
-        """Of the cube's four face directions, the one the arm reaches with least roll."""
+        """Of the cube's four face directions, the one the jaws reach with least roll."""
         base = cube_yaw(self.env.physics)
         best_yaw, best_cost = base, math.inf
+        seed = self._seed_towards(position)
         for quarter in range(4):
             yaw = base + quarter * _QUARTER_TURN_RAD
-            seed = self._ready.copy()
-            seed[0] = math.atan2(-position[0], position[1] - constants.ROBOT_BASE_POS_M[1])
             q, position_error, rotation_error = self._kinematics.solve(
                 seed, position, _downward_rotation(yaw)
             )
-            roll = constants.ARM_JOINT_NAMES.index("wrist_roll")
-            cost = abs(q[roll]) + 100.0 * (position_error + rotation_error)
+            cost = abs(q[self._roll]) + 100.0 * (position_error + rotation_error)
             if cost < best_cost:
                 best_yaw, best_cost = yaw, cost
         return best_yaw
 
+    # --- phases ---------------------------------------------------------------------------
     def _begin_approach(self) -> None:
-        cube = self.env.physics.cube_position()
         config = self.config
-        grasp = cube.copy()
+        grasp = self.env.physics.cube_position()
         grasp[2] = config.grasp_height_m
-        self._grasp_yaw = self._choose_grasp_yaw(grasp)
-        # Leave the fixed jaw clear of the cube while descending: shift the jaws along
-        # the gripper's -x axis, away from the moving jaw. Closing pushes the cube back
-        # against the fixed jaw.
-        closing_axis = _downward_rotation(self._grasp_yaw)[:, 0]
+        self._yaw = self._choose_grasp_yaw(grasp)
+        # The jaws descend with the fixed jaw clear of the cube (shifted along the
+        # gripper's -x axis, away from the moving jaw); closing pushes the cube onto it.
+        closing_axis = _downward_rotation(self._yaw)[:, 0]
         self._grasp_point = grasp - config.fixed_jaw_clearance_m * closing_axis
         hover = self._grasp_point.copy()
         hover[2] = config.hover_height_m
-        seed = self._ready.copy()
-        seed[0] = math.atan2(-hover[0], hover[1] - constants.ROBOT_BASE_POS_M[1])
-        target = self._solve_down(hover, self._grasp_yaw, seed)
+        target, _, _ = self._kinematics.solve(
+            self._seed_towards(hover), hover, _downward_rotation(self._yaw)
+        )
         self._joint_move(target)
         self._gripper(config.gripper_open_rad)
 
     def _begin_descend(self) -> None:
-        self._line_move(self._grasp_point, self._grasp_yaw)
+        self._line_move(self._grasp_point, self._yaw)
         self._gripper(self.config.gripper_open_rad)
 
     def _begin_close(self) -> None:
-        self._hold()
+        self._hold_arm()
         self._gripper(self.config.gripper_closed_rad)
 
+    def _begin_rise(self) -> None:
+        site, _ = self._kinematics.site_pose(self._command[: self._n_arm])
+        site[2] = max(site[2], self.config.hover_height_m)
+        self._line_move(site, self._yaw)
+        self._gripper(self.config.gripper_open_rad)
+
     def _begin_lift(self) -> None:
+        if not self._holding():
+            return
         physics = self.env.physics
-        # Where the held cube sits relative to the site, to place it precisely later.
+        # Where the held cube sits relative to the site, to put it down precisely later.
         self._cube_offset = physics.cube_position() - physics.grasp_center()
-        target = physics.grasp_center()
+        target = self._kinematics.within_reach(physics.grasp_center(), self.config.lift_reach_m)
         target[2] = self.config.carry_height_m - self._cube_offset[2]
-        self._line_move(target, self._grasp_yaw)
+        self._line_move(target, self._yaw)
         self._gripper(self.config.gripper_closed_rad)
 
 
 class LiftExpert(ScriptedExpert):
-    """Approach, descend, close and lift the cube well above the 5 cm line."""
+    """Approach, descend, close and lift the cube 2.5 cm above the 5 cm line, then hold."""
 
-    def _build_phases(self) -> list[_Phase]:
+    def _after_grasp_phases(self) -> list[_Phase]:
         c = self.config
         return [
-            _Phase("approach", c.approach_steps, self._begin_approach),
-            _Phase("descend", c.descend_steps, self._begin_descend),
-            _Phase("close", c.close_steps, self._begin_close),
             _Phase("lift", c.lift_steps, self._begin_lift),
+            _Phase("hold", c.hold_steps, self._begin_hold),
         ]
+
+    def _begin_hold(self) -> None:
+        if self._holding():
+            self._hold_arm()
 
 
 class PickAndPlaceExpert(ScriptedExpert):
     """Lift the cube, carry it over the pad, lower it, release it and move away."""
 
-    def _build_phases(self) -> list[_Phase]:
+    def _after_grasp_phases(self) -> list[_Phase]:
         c = self.config
         return [
-            _Phase("approach", c.approach_steps, self._begin_approach),
-            _Phase("descend", c.descend_steps, self._begin_descend),
-            _Phase("close", c.close_steps, self._begin_close),
             _Phase("lift", c.lift_steps, self._begin_lift),
             _Phase("carry", c.carry_steps, self._begin_carry),
             _Phase("lower", c.lower_steps, self._begin_lower),
@@ -376,35 +517,38 @@ class PickAndPlaceExpert(ScriptedExpert):
             _Phase("retreat", c.retreat_steps, self._begin_retreat),
         ]
 
-    def _site_target_for_cube(self, cube_centre: np.ndarray) -> np.ndarray:
+    def _site_target(self, cube_centre: np.ndarray) -> np.ndarray:
+        """Where ``grasp_center`` goes to bring the held cube's centre to ``cube_centre``."""
+        physics = self.env.physics
+        self._cube_offset = physics.cube_position() - physics.grasp_center()
         return cube_centre - self._cube_offset
 
     def _begin_carry(self) -> None:
-        physics = self.env.physics
-        self._cube_offset = physics.cube_position() - physics.grasp_center()
-        goal = physics.goal_position()
+        if not self._holding():
+            return
+        goal = self.env.physics.goal_position()
         cube = np.array([goal[0], goal[1], self.config.carry_height_m])
-        self._line_move(self._site_target_for_cube(cube), self._grasp_yaw)
+        self._arc_move(self._site_target(cube))
 
     def _begin_lower(self) -> None:
-        physics = self.env.physics
-        self._cube_offset = physics.cube_position() - physics.grasp_center()
-        goal = physics.goal_position()
-        centre_height = constants.CUBE_HALF_M + constants.TABLE_TOP_Z_M
-        cube = np.array([goal[0], goal[1], centre_height + self.config.place_clearance_m])
-        self._line_move(self._site_target_for_cube(cube), self._grasp_yaw)
+        if not self._holding():
+            return
+        goal = self.env.physics.goal_position()
+        resting_height = constants.TABLE_TOP_Z_M + constants.CUBE_HALF_M
+        cube = np.array([goal[0], goal[1], resting_height + self.config.place_clearance_m])
+        self._line_move(self._site_target(cube), self._yaw)
 
     def _begin_release(self) -> None:
-        self._hold()
+        self._hold_arm()
         self._gripper(self.config.gripper_open_rad)
 
     def _begin_retreat(self) -> None:
-        arm = self._command[: self._n_arm]
-        site, _ = self._kinematics.site_pose(arm)
-        closing_axis = _downward_rotation(self._grasp_yaw)[:, 0]
-        target = site - 0.01 * closing_axis
+        site, _ = self._kinematics.site_pose(self._command[: self._n_arm])
+        # Slide the fixed jaw off the cube's face, then rise.
+        closing_axis = _downward_rotation(self._yaw)[:, 0]
+        target = site - self.config.fixed_jaw_clearance_m * 2.5 * closing_axis
         target[2] = self.config.retreat_height_m
-        self._line_move(target, self._grasp_yaw)
+        self._line_move(target, self._yaw)
 
 
 EXPERTS: dict[str, type[ScriptedExpert]] = {

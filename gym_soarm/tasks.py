@@ -18,6 +18,11 @@ from gym_soarm import constants
 from gym_soarm.physics import SoArmPhysics
 
 
+def _norm(vector: np.ndarray) -> float:
+    """Euclidean norm of a 1-D float array: what np.linalg.norm computes, with less overhead."""
+    return math.sqrt(vector.dot(vector))
+
+
 def tolerance(distance: float, bound: float, margin: float) -> float:
     """1 inside ``bound``, falling smoothly to 0.1 at ``bound + margin``, in [0, 1]."""
     if distance <= bound:
@@ -48,6 +53,10 @@ REACH_MARGIN_M = 0.10
 CARRY_HEIGHT_M = 0.05
 PLACE_MARGIN_M = 0.20
 RESTING_SPEED_M_S = 0.05
+# Share of the place term earned by carrying the held cube over the pad, and by a cube
+# that sits on the pad but is still held or moving; the release earns the rest.
+PLACE_CARRY_CREDIT = 0.8
+PLACE_ON_PAD_CREDIT = 0.9
 
 
 @dataclasses.dataclass(frozen=True)
@@ -110,7 +119,14 @@ class SoArmTask(base.Task):
         return {"agent_pos": physics.joint_angles()}
 
     # --- reward ------------------------------------------------------------------------
-    def reward_terms(self, physics: SoArmPhysics) -> dict[str, float]:
+    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
+        """The named reward terms, each in [0, 1].
+
+        Args:
+            physics: the simulation to score.
+            success: ``is_success(physics)`` when the caller already has it (it is not
+                computed twice per step then).
+        """
         raise NotImplementedError
 
     def get_reward(self, physics: SoArmPhysics) -> float:
@@ -123,14 +139,13 @@ class SoArmTask(base.Task):
         return 0.0 if self.is_success(physics) else None
 
     def _reach(self, physics: SoArmPhysics) -> float:
-        distance = float(np.linalg.norm(physics.grasp_center() - physics.cube_position()))
+        distance = _norm(physics.grasp_center() - physics.cube_position())
         return tolerance(distance, 0.01, REACH_MARGIN_M)
 
     @staticmethod
-    def _lift_progress(physics: SoArmPhysics, grasped: bool) -> float:
-        if not grasped:
-            return 0.0
-        return float(np.clip(physics.cube_bottom_height() / CARRY_HEIGHT_M, 0.0, 1.0))
+    def _lift_progress(physics: SoArmPhysics) -> float:
+        """How far a held cube is raised towards the carry height, in [0, 1]."""
+        return min(max(physics.cube_bottom_height() / CARRY_HEIGHT_M, 0.0), 1.0)
 
 
 class PickAndPlaceTask(SoArmTask):
@@ -155,23 +170,29 @@ class PickAndPlaceTask(SoArmTask):
         return (
             self._on_goal(physics)
             and not physics.cube_touched_by_jaws()
-            and float(np.linalg.norm(physics.cube_velocity())) < RESTING_SPEED_M_S
+            and _norm(physics.cube_velocity()) < RESTING_SPEED_M_S
         )
 
-    def reward_terms(self, physics: SoArmPhysics) -> dict[str, float]:
-        if self.is_success(physics):
+    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
+        if self.is_success(physics) if success is None else success:
             return dict.fromkeys(self.weights.terms, 1.0)
-        grasped = physics.cube_grasped()
-        lift = self._lift_progress(physics, grasped)
-        xy = physics.cube_position()[:2] - physics.goal_position()[:2]
-        near_goal = tolerance(float(np.hypot(*xy)), constants.GOAL_RADIUS_M / 2, PLACE_MARGIN_M)
-        # Carrying the cube towards the pad earns the place term; so does a cube on the pad.
-        place = near_goal * max(lift, 1.0 if self._on_goal(physics) else 0.0)
+        # Stages in order: reach, grasp, lift, place. A later stage counts every earlier
+        # one as complete, so the reward never falls as the task progresses.
+        if self._on_goal(physics):
+            # On the pad but still held or moving: only the release is missing.
+            return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACE_ON_PAD_CREDIT}
+        if not physics.cube_grasped():
+            return {"reach": self._reach(physics), "grasp": 0.0, "lift": 0.0, "place": 0.0}
+        offset = physics.cube_position()[:2] - physics.goal_position()[:2]
+        goal_distance = math.hypot(offset[0], offset[1])
+        # A held cube above the pad counts as lifted, so lowering it onto the pad loses nothing.
+        lift = 1.0 if goal_distance <= constants.GOAL_RADIUS_M else self._lift_progress(physics)
+        near_goal = tolerance(goal_distance, constants.GOAL_RADIUS_M / 2, PLACE_MARGIN_M)
         return {
-            "reach": self._reach(physics),
-            "grasp": 1.0 if grasped else 0.0,
+            "reach": 1.0,
+            "grasp": 1.0,
             "lift": lift,
-            "place": place,
+            "place": PLACE_CARRY_CREDIT * near_goal * lift,
         }
 
 
@@ -188,19 +209,11 @@ class LiftTask(SoArmTask):
     def is_success(self, physics: SoArmPhysics) -> bool:
         return physics.cube_grasped() and physics.cube_bottom_height() >= constants.LIFT_HEIGHT_M
 
-    def reward_terms(self, physics: SoArmPhysics) -> dict[str, float]:
-        grasped = physics.cube_grasped()
-        return {
-            "reach": self._reach(physics),
-            "grasp": 1.0 if grasped else 0.0,
-            "lift": float(
-                np.clip(
-                    physics.cube_bottom_height() / constants.LIFT_HEIGHT_M if grasped else 0.0,
-                    0.0,
-                    1.0,
-                )
-            ),
-        }
+    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
+        if not physics.cube_grasped():
+            return {"reach": self._reach(physics), "grasp": 0.0, "lift": 0.0}
+        height = physics.cube_bottom_height() / constants.LIFT_HEIGHT_M
+        return {"reach": 1.0, "grasp": 1.0, "lift": min(max(height, 0.0), 1.0)}
 
 
 TASKS: dict[str, type[SoArmTask]] = {
