@@ -39,6 +39,7 @@ import numpy as np
 
 from gym_soarm import constants
 from gym_soarm.physics import SoArmPhysics
+from gym_soarm.units import RADIANS, joint_units
 
 _QUARTER_TURN_RAD = math.pi / 2
 
@@ -279,6 +280,7 @@ class ScriptedExpert:
     def __init__(self, env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> None:
         self.env = env.unwrapped
         self.config = config
+        self._units = joint_units(getattr(self.env, "units", RADIANS))
         physics: SoArmPhysics = self.env.physics
         self._kinematics = ArmKinematics(physics.model.ptr)
         self._n_arm = len(constants.ARM_JOINT_NAMES)
@@ -319,7 +321,14 @@ class ScriptedExpert:
         self._begin_phase()
 
     def __call__(self, obs: Any = None, info: dict[str, Any] | None = None) -> np.ndarray:
-        """The next action: six servo targets in radians (float32), gripper last."""
+        """The next action (float32): six servo targets in the environment's ``units``."""
+        return self._units.from_radians(self.next_targets_radians()).astype(np.float32)
+
+    def next_targets_radians(self) -> np.ndarray:
+        """The next six servo targets in radians (float64), gripper last.
+
+        This advances the script like a call does; use one or the other per step.
+        """
         now = self.env.physics.data.time
         if not self._plan or now < self._time:
             self.reset()
@@ -335,7 +344,7 @@ class ScriptedExpert:
             if self._phase_step >= phase.steps:
                 self._phase_index += 1
                 self._begin_phase()
-        return self._command.astype(np.float32)
+        return self._command.copy()
 
     # --- the script ----------------------------------------------------------------------
     def _grasp_phases(self) -> list[_Phase]:

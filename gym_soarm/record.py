@@ -262,7 +262,7 @@ def record(
             attempts += 1
             done = False
             while not done:
-                action_rad = np.asarray(expert(obs, info), dtype=np.float64)
+                action_rad = expert.next_targets_radians()  # radians, whatever the units
                 executed_rad = action_rad
                 if dart_noise > 0:
                     executed_rad = action_rad + noise.normal(0.0, dart_noise, action_rad.shape)
