@@ -174,7 +174,8 @@ class SoArmEnv(gym.Env):
         self.units = units
         self._units = joint_units(units)
 
-        self._physics = SoArmPhysics.from_scene()
+        # The render quality picks the visual meshes; the physics is the same for both.
+        self._physics = SoArmPhysics.from_scene(render_quality)
         self._task: SoArmTask = TASKS[task]()
         self.task = self._task.name
         self.task_description = self._task.description
@@ -242,6 +243,28 @@ class SoArmEnv(gym.Env):
 
     # --- validation --------------------------------------------------------------------
     def _validate_action(self, action: Any) -> np.ndarray:
+        if (
+            type(action) is np.ndarray
+            and action.dtype.kind == "f"
+            and action.shape == self.action_space.shape
+        ):
+            array = action  # the common case, already known to be a real array of the right shape
+        else:
+            array = self._check_action_array(action)
+        array = array.astype(np.float64)
+        if not np.isfinite(array).all():
+            bad = [constants.JOINT_NAMES[i] for i in np.flatnonzero(~np.isfinite(array))]
+            raise ValueError(
+                f"action must be finite; got {array.tolist()!r} with NaN/inf for {bad}. "
+                "The simulation was not stepped."
+            )
+        if self.units != "radians":
+            array = self._units.to_radians(array)
+        # In place on our own copy; the same values as np.clip, with less overhead.
+        np.maximum(array, self._action_low, out=array)
+        return np.minimum(array, self._action_high, out=array)
+
+    def _check_action_array(self, action: Any) -> np.ndarray:
         try:
             array = np.asarray(action)
         except (TypeError, ValueError) as exc:
@@ -260,14 +283,7 @@ class SoArmEnv(gym.Env):
                 f"action must have shape {self.action_space.shape} (one target per joint: "
                 f"{', '.join(constants.JOINT_NAMES)}); got shape {array.shape}."
             )
-        array = array.astype(np.float64)
-        if not np.isfinite(array).all():
-            bad = [constants.JOINT_NAMES[i] for i in np.flatnonzero(~np.isfinite(array))]
-            raise ValueError(
-                f"action must be finite; got {array.tolist()!r} with NaN/inf for {bad}. "
-                "The simulation was not stepped."
-            )
-        return np.clip(self._units.to_radians(array), self._action_low, self._action_high)
+        return array
 
     @staticmethod
     def _validate_options(options: Mapping[str, Any] | None) -> tuple[int | None, float | None]:
@@ -350,7 +366,7 @@ class SoArmEnv(gym.Env):
             info = dict(self._last_info, is_success=False, physics_unstable=True)
             return self._last_obs, 0.0, False, True, info
         success = self._task.is_success(self._physics)
-        terms = self._task.reward_terms(self._physics)
+        terms = self._task.reward_terms(self._physics, success=success)
         reward = float(success) if self.reward_type == "sparse" else self._task.weights.total(terms)
         obs = self._observation()
         info = self._info(physics_unstable=False, success=success, terms=terms)
