@@ -174,9 +174,12 @@ def test_videos_decode_to_the_recorded_frames_at_exact_times(recorded):
         for i in range(len(original)):
             own = psnr(decoded[i], original[i])
             assert own > 25, (camera, i)
-            # No frame is shifted or swapped: every decoded frame is closest to its own.
-            others = [psnr(decoded[i], original[j]) for j in range(len(original))]
-            assert own >= max(others) - 0.5, (camera, i, int(np.argmax(others)))
+            # No frame is shifted or swapped: a decoded frame is closer to its own recorded
+            # frame than to any recorded frame that clearly differs from it.
+            distinct = [j for j in range(len(original)) if psnr(original[i], original[j]) < 30]
+            assert len(distinct) >= len(original) // 2, (camera, i)
+            closest_other = max(psnr(decoded[i], original[j]) for j in distinct)
+            assert own > closest_other, (camera, i)
         np.testing.assert_allclose(
             frame_times(path), np.arange(sum(LENGTHS)) / FPS, rtol=0, atol=1e-4
         )
