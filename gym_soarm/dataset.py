@@ -330,7 +330,10 @@ def _concatenate_videos(first: Path, second: Path, out: Path, scratch: Path) -> 
         "+faststart",
         str(out),
     ]
-    result = subprocess.run(command, capture_output=True, text=True, check=False)
+    # A session of its own keeps a terminal's Ctrl-C away from ffmpeg; the writer decides.
+    result = subprocess.run(
+        command, capture_output=True, text=True, check=False, start_new_session=True
+    )
     if result.returncode != 0:
         raise RuntimeError(f"ffmpeg could not join {first} and {second}: {result.stderr.strip()}")
 
@@ -365,6 +368,9 @@ class LeRobotDatasetWriter:
             ``meta/info.json``); any other non-empty folder is never deleted.
         video_crf: H.264 quality (lower is better and larger).
         video_gop: frames between key frames; short groups make random access cheap.
+        data_files_size_in_mb: a data file that has reached this size is closed and the
+            next episode starts a new one (LeRobot's default 100).
+        video_files_size_in_mb: the same for each camera's video files (default 200).
 
     Raises:
         FileExistsError: ``root`` is not empty and ``overwrite`` is false.
@@ -382,6 +388,8 @@ class LeRobotDatasetWriter:
         overwrite: bool = False,
         video_crf: int = 23,
         video_gop: int = 2,
+        data_files_size_in_mb: float = DATA_FILES_SIZE_MB,
+        video_files_size_in_mb: float = VIDEO_FILES_SIZE_MB,
     ) -> None:
         self._pa = _require_pyarrow()
         if isinstance(fps, bool) or not isinstance(fps, (int, np.integer)) or fps <= 0:
@@ -389,6 +397,12 @@ class LeRobotDatasetWriter:
         for name, value in (("video_crf", video_crf), ("video_gop", video_gop)):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
                 raise ValueError(f"{name} must be a non-negative int; got {value!r}.")
+        for name, value in (
+            ("data_files_size_in_mb", data_files_size_in_mb),
+            ("video_files_size_in_mb", video_files_size_in_mb),
+        ):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+                raise ValueError(f"{name} must be a positive number of megabytes; got {value!r}.")
         if robot_type is not None and not isinstance(robot_type, str):
             raise ValueError(f"robot_type must be a string or None; got {robot_type!r}.")
         self.features = _parse_features(features)
@@ -398,6 +412,7 @@ class LeRobotDatasetWriter:
         self.fps = int(fps)
         self.robot_type = robot_type
         self._crf, self._gop = int(video_crf), int(video_gop)
+        self._data_mb, self._video_mb = data_files_size_in_mb, video_files_size_in_mb
         self._video_keys = [k for k, f in self.features.items() if f.is_video]
         self._numeric_keys = [k for k, f in self.features.items() if not f.is_video]
         self._scratch = self.root / _SCRATCH_DIR
@@ -581,7 +596,7 @@ class LeRobotDatasetWriter:
 
         # Stage every new file in the scratch folder, then move them all into place.
         staged: list[tuple[Path, Path]] = []
-        if self._data_file.frames and self._file_size_mb(self._data_path()) >= DATA_FILES_SIZE_MB:
+        if self._data_file.frames and self._file_size_mb(self._data_path()) >= self._data_mb:
             self._data_file.advance()
         data_path = self._data_path()
         staged.append((self._stage_data(columns, data_path), data_path))
@@ -596,7 +611,7 @@ class LeRobotDatasetWriter:
         }
         for key in self._video_keys:
             pointer = self._video_files[key]
-            if pointer.frames and self._file_size_mb(self._video_path(key)) >= VIDEO_FILES_SIZE_MB:
+            if pointer.frames and self._file_size_mb(self._video_path(key)) >= self._video_mb:
                 pointer.advance()
             video_path = self._video_path(key)
             segment = self._segment_path(key)
@@ -631,7 +646,7 @@ class LeRobotDatasetWriter:
             self._episodes.append(row)
             self._total_frames += length
             self._write_metadata()
-        self._reset_buffer()
+            self._reset_buffer()
         return episode_index
 
     def finalize(self) -> None:
@@ -776,8 +791,8 @@ class LeRobotDatasetWriter:
             "total_frames": self._total_frames,
             "total_tasks": len(self._tasks),
             "chunks_size": CHUNKS_SIZE,
-            "data_files_size_in_mb": DATA_FILES_SIZE_MB,
-            "video_files_size_in_mb": VIDEO_FILES_SIZE_MB,
+            "data_files_size_in_mb": self._data_mb,
+            "video_files_size_in_mb": self._video_mb,
             "data_path": DATA_PATH,
             "video_path": VIDEO_PATH if self._video_keys else None,
             "robot_type": self.robot_type,

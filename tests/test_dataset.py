@@ -399,3 +399,37 @@ def test_an_interrupted_recording_keeps_its_finished_episodes(tmp_path):
     video = ds.video_path("observation.images.front_camera", 1)
     assert len(decode_video(video)) == 12
     np.testing.assert_allclose(frame_times(video), np.arange(12) / FPS, atol=1e-4)
+
+
+def test_full_files_roll_over_to_new_ones(tmp_path):
+    """Past the size limits, each episode starts new data and video files."""
+    root = tmp_path / "ds"
+    writer = LeRobotDatasetWriter.create(
+        root, FPS, _state_features(), data_files_size_in_mb=1e-6, video_files_size_in_mb=1e-6
+    )
+    for e, length in enumerate((3, 4, 5)):
+        for t in range(length):
+            frame = _good_frame()
+            frame["action"][:] = 10 * e + t
+            frame["observation.images.front_camera"][:] = 40 * e
+            writer.add_frame(frame)
+        writer.save_episode()
+    writer.finalize()
+    ds = read_dataset(root)
+    assert len(list(root.glob("data/chunk-000/*.parquet"))) == 3
+    assert ds.info["total_frames"] == 12
+    np.testing.assert_array_equal(ds.data["index"], np.arange(12))
+    np.testing.assert_array_equal(
+        ds.data["action"][:, 0], [0, 1, 2, 10, 11, 12, 13, 20, 21, 22, 23, 24]
+    )
+    key = "observation.images.front_camera"
+    for e, row in enumerate(ds.episodes):
+        assert row["data/file_index"] == row[f"videos/{key}/file_index"] == e
+        assert row[f"videos/{key}/from_timestamp"] == 0.0
+        frames = decode_video(ds.video_path(key, e))
+        assert len(frames) == row["length"]
+        assert abs(frames.mean() - 40 * e) < 3
+    with pytest.raises(ValueError, match="video_files_size_in_mb must be a positive"):
+        LeRobotDatasetWriter.create(
+            tmp_path / "bad", FPS, _state_features(), video_files_size_in_mb=0
+        )
