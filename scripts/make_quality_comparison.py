@@ -1,0 +1,103 @@
+"""Render the README picture of the two render qualities: docs/quality_fast_vs_high.png.
+
+    python scripts/make_quality_comparison.py
+
+Runs the scripted expert until the open jaws are over the cube (the same state in both
+qualities: the physics does not depend on them), then renders the arm through the
+front camera (a crop of a 640x480 frame) and the wrist camera in ``fast`` (top row)
+and ``high`` (bottom row). Rerun it after a change to the scene or to the meshes.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import gymnasium as gym
+import imageio.v3 as iio
+import numpy as np
+
+import gym_soarm
+
+OUTPUT = Path(__file__).resolve().parents[1] / "docs" / "quality_fast_vs_high.png"
+FRONT_SIZE = (480, 640)  # rendered (height, width); the arm is cropped out of it
+FRONT_CROP = (slice(40, 280), slice(160, 480))  # 240 x 320 around the arm
+WRIST_SIZE = (240, 320)
+LABEL_WIDTH = 150
+GAP = 4
+APPROACH_STEPS = 60
+LABELS = {
+    "fast": ("fast", "simplified meshes", "no shadows", "no reflections", "no multisampling"),
+    "high": ("high", "provider meshes", "shadows", "reflections", "4x multisampling"),
+}
+
+
+def views(quality: str, seed: int, grid_cell: int, steps: int) -> list[np.ndarray]:
+    """Front-camera crop and wrist-camera image after ``steps`` expert steps."""
+    env = gym.make(
+        "SoArm-v0",
+        obs_type="pixels",
+        camera_config=["wrist_camera"],
+        observation_height=WRIST_SIZE[0],
+        observation_width=WRIST_SIZE[1],
+        render_quality=quality,
+    )
+    try:
+        obs, info = env.reset(
+            seed=seed, options={"cube_grid_position": grid_cell, "cube_rotation_deg": 30.0}
+        )
+        expert = gym_soarm.make_expert(env)
+        expert.reset()
+        for _ in range(steps):
+            obs, _, _, _, info = env.step(expert(obs, info))
+        front = env.unwrapped.render_camera_image("front_camera", *FRONT_SIZE)
+        return [front[FRONT_CROP], obs["wrist_camera"]]
+    finally:
+        env.close()
+
+
+def compose(rows: dict[str, list[np.ndarray]]) -> np.ndarray:
+    """One row per quality, a label on the left of each."""
+    import cv2
+
+    height = rows["fast"][0].shape[0]
+    width = LABEL_WIDTH + sum(image.shape[1] + GAP for image in rows["fast"])
+    sheet = np.full((len(rows) * (height + GAP) - GAP, width, 3), 255, dtype=np.uint8)
+    for r, (quality, images) in enumerate(rows.items()):
+        y = r * (height + GAP)
+        x = LABEL_WIDTH
+        for image in images:
+            sheet[y : y + height, x : x + image.shape[1]] = image
+            x += image.shape[1] + GAP
+        for i, text in enumerate(LABELS[quality]):
+            cv2.putText(
+                sheet,
+                text,
+                (8, y + 30 + 24 * i),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.7 if i == 0 else 0.45,
+                (30, 30, 30),
+                2 if i == 0 else 1,
+                cv2.LINE_AA,
+            )
+    return sheet
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--output", type=Path, default=OUTPUT, help=f"default: {OUTPUT}")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--grid-cell", type=int, default=4)
+    parser.add_argument("--steps", type=int, default=APPROACH_STEPS)
+    args = parser.parse_args(argv)
+    rows = {q: views(q, args.seed, args.grid_cell, args.steps) for q in ("fast", "high")}
+    sheet = compose(rows)
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    iio.imwrite(args.output, sheet, optimize=True)
+    print(
+        f"wrote {args.output} ({sheet.shape[1]}x{sheet.shape[0]}, {args.output.stat().st_size} bytes)"
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,181 @@
+"""The benchmark command runs and reports every figure; both qualities show the scene.
+
+Speed itself is never asserted here: the benchmark measures it.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import mujoco
+import numpy as np
+import pytest
+
+from gym_soarm import bench, model
+from gym_soarm.rendering import CameraRenderer
+
+STAT_FIELDS = {"median", "min", "max", "repeats"}
+
+
+def _check_spread(spread: dict, repeats: int) -> None:
+    assert set(spread) == STAT_FIELDS
+    assert len(spread["repeats"]) == repeats
+    assert 0 < spread["min"] <= spread["median"] <= spread["max"]
+
+
+def test_short_benchmark_run_reports_every_field(tmp_path):
+    out = tmp_path / "bench.json"
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "gym_soarm.bench",
+            "--configs",
+            "state,front_only_64x48",
+            "--seconds",
+            "0.2",
+            "--repeats",
+            "3",
+            "--processes",
+            "2",
+            "--json",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=240,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "| state |" in proc.stdout and "| front_only_64x48 |" in proc.stdout
+    assert "target state steps_per_s >= 4000" in proc.stdout
+
+    report = json.loads(out.read_text())
+    assert set(report) == {"machine", "versions", "settings", "configs", "cold_make", "targets"}
+    assert report["machine"]["cpu_count"] >= 1
+    assert report["machine"]["gl_backend"] in ("egl", "osmesa", "glfw")
+    assert report["machine"]["gl_renderer"]
+    assert report["settings"] == {
+        **report["settings"],
+        "seconds": 0.2,
+        "repeats": 3,
+        "processes": 2,
+    }
+    state, pixels = report["configs"]
+    for result in (state, pixels):
+        _check_spread(result["steps_per_s"], 3)
+        _check_spread(result["ceiling"]["steps_per_s"], 3)
+        _check_spread(result["vector"]["steps_per_s"], 3)
+        assert result["vector"]["processes"] == 2
+        ms = result["ms_per_step"]
+        assert ms["total"] == pytest.approx(ms["physics"] + ms["render"], rel=0.05)
+        assert ms["physics"] > 0
+        assert result["ratio_to_ceiling"] > 0
+        assert result["make_s"] > 0 and result["reset_ms"] > 0 and result["first_reset_ms"] > 0
+        assert result["peak_rss_mb"] > 50
+    assert state["name"] == "state" and state["obs_type"] == "environment_state_agent_pos"
+    assert state["ms_per_step"]["render"] == 0
+    assert state["ceiling"]["kind"] == "mujoco.mj_step x10"
+    assert pixels["render_quality"] == "fast" and pixels["camera_config"] == "front_only"
+    assert (pixels["observation_width"], pixels["observation_height"]) == (64, 48)
+    assert pixels["ms_per_step"]["render"] > 0
+    assert pixels["ceiling"]["kind"] == "mujoco.Renderer, 1 camera(s)"
+    assert [c["visual"] for c in report["cold_make"]] == ["fast"]
+    assert all(c["make_s"] > 0 for c in report["cold_make"])
+    checked = {(t["config"], t["figure"]) for t in report["targets"]}
+    assert {
+        ("state", "steps_per_s"),
+        ("state", "reset_ms"),
+        ("state", "make_s"),
+        ("front_only_64x48", "ratio_to_ceiling"),
+    } <= checked
+    for target in report["targets"]:
+        assert isinstance(target["met"], bool) and target["value"] > 0
+
+
+@pytest.mark.parametrize(
+    "name, expected",
+    [
+        ("state", ("environment_state_agent_pos", None, 0, 0, "fast")),
+        ("front_wrist_640x480", ("pixels_agent_pos", "front_wrist", 640, 480, "fast")),
+        ("all_224x224_high", ("pixels_agent_pos", "all", 224, 224, "high")),
+        ("front_only_64x48_fast", ("pixels_agent_pos", "front_only", 64, 48, "fast")),
+    ],
+)
+def test_configuration_names(name, expected):
+    config = bench.BenchConfig.parse(name)
+    assert (
+        config.obs_type,
+        config.camera_config,
+        config.width,
+        config.height,
+        config.render_quality,
+    ) == expected
+
+
+@pytest.mark.parametrize(
+    "argv, fragment",
+    [
+        (["--configs", "front_wrist_640"], "unknown benchmark configuration 'front_wrist_640'"),
+        (["--configs", "state", "--seconds", "0"], "seconds must be a positive number"),
+        (["--configs", "state", "--repeats", "0"], "repeats must be at least 1"),
+        (["--configs", "state", "--processes", "0"], "processes must be at least 1"),
+    ],
+)
+def test_bad_options_are_refused_before_measuring(argv, fragment, capsys, tmp_path):
+    with pytest.raises(SystemExit) as exit_info:
+        bench.main([*argv, "--json", str(tmp_path / "never.json")])
+    assert exit_info.value.code == 2
+    assert fragment in capsys.readouterr().err
+    assert not (tmp_path / "never.json").exists()
+
+
+def _colour_counts(image: np.ndarray) -> dict[str, int]:
+    r, g, b = (image[..., i].astype(int) for i in range(3))
+    return {
+        "blue cube": int(((b > 120) & (b > r + 60) & (b > g + 40)).sum()),
+        "green pad": int(((g > 120) & (g > r + 50) & (g > b + 50)).sum()),
+        "white arm": int(((r > 150) & (abs(r - g) < 20) & (abs(g - b) < 20)).sum()),
+    }
+
+
+@pytest.mark.parametrize("quality", ["fast", "high"])
+def test_both_qualities_show_the_cube_the_pad_and_the_arm(make_env, quality):
+    env = make_env(
+        "SoArm-v0",
+        obs_type="pixels",
+        camera_config="front_wrist",
+        render_quality=quality,
+        observation_height=240,
+        observation_width=320,
+    )
+    obs, _ = env.reset(seed=0, options={"cube_grid_position": 4})
+    front = _colour_counts(obs["front_camera"])
+    assert front["blue cube"] > 10 and front["green pad"] > 10, front
+    assert front["white arm"] > 30, front
+    assert obs["front_camera"].std() > 20
+    wrist = _colour_counts(obs["wrist_camera"])
+    assert wrist["white arm"] > 500, wrist  # the gripper fills part of the wrist view
+
+
+@pytest.mark.parametrize("camera", ["front_camera", "wrist_camera"])
+def test_simplified_meshes_render_like_the_provider_meshes(camera):
+    """Same renderer settings, both mesh sets: the pictures barely differ."""
+    pose = np.array([0.03, -0.33, 0.60, 1.30, 0.61, 0.60])
+    images = []
+    for visual in ("fast", "high"):
+        scene = model.load_scene_model(visual)
+        data = mujoco.MjData(scene)
+        mujoco.mj_resetDataKeyframe(scene, data, 0)
+        data.qpos[:6] = pose
+        mujoco.mj_forward(scene, data)
+        renderer = CameraRenderer(scene, 160, 120, "fast")
+        try:
+            images.append(renderer.render(data, scene.camera(camera).id).astype(int))
+        finally:
+            renderer.close()
+    difference = np.abs(images[0] - images[1])
+    assert difference.mean() < 4.0
+    assert (difference.max(axis=2) > 40).mean() < 0.03
