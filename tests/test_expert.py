@@ -1,0 +1,224 @@
+"""The scripted expert: success over every cell and yaw, reward stages, grip, any obs type."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from conftest import SMALL
+
+import gym_soarm
+from gym_soarm import constants
+from gym_soarm.expert import (
+    TASK_ENV_IDS,
+    evaluate,
+    evaluation_resets,
+    main,
+    make_expert,
+    run_episode,
+)
+
+# Success floors over 9 cells x 4 yaws x 3 seeds (SPEC section 8).
+SUCCESS_FLOORS = {"pick_and_place": 0.95, "lift": 0.98}
+MAX_SLIP_M = 0.005
+# Phases of each reward stage, in the order the stages must score.
+STAGES = {
+    "reach": ("approach", "descend"),
+    "grasp": ("close",),
+    "lift": ("lift",),
+    "place": ("carry", "lower", "release", "retreat"),
+}
+
+
+def _state_env(make_env, task: str, **kwargs) -> gym.Env:
+    return make_env(TASK_ENV_IDS[task], obs_type="environment_state_agent_pos", **kwargs)
+
+
+def _expert_trace(env: gym.Env, cell: int, yaw: float) -> list[dict]:
+    """One expert episode, step by step: phase, reward, info and grasp geometry."""
+    expert = make_expert(env)
+    physics = env.unwrapped.physics
+    obs, info = env.reset(seed=0, options={"cube_grid_position": cell, "cube_rotation_deg": yaw})
+    expert.reset()
+    trace = []
+    while True:
+        phase = expert.phase
+        obs, reward, terminated, truncated, info = env.step(expert(obs, info))
+        site_rotation = physics.data.site_xmat[physics.model.name2id("grasp_center", "site")]
+        trace.append(
+            {
+                "phase": phase,
+                "reward": reward,
+                "info": info,
+                "grasped": physics.cube_grasped(),
+                "cube": physics.cube_position(),
+                "cube_in_site": site_rotation.reshape(3, 3).T
+                @ (physics.cube_position() - physics.grasp_center()),
+            }
+        )
+        if terminated or truncated:
+            return trace
+
+
+@pytest.mark.parametrize("task", list(TASK_ENV_IDS))
+def test_expert_succeeds_over_every_cell_yaw_and_seed(task):
+    results = evaluate(task)
+    assert len(results) == 9 * 4 * 3
+    assert {(r.cell, r.yaw_deg) for r in results} == {
+        (cell, yaw) for cell in range(9) for yaw in constants.CUBE_YAWS_DEG
+    }
+    rate = sum(r.success for r in results) / len(results)
+    failed = [(r.cell, r.yaw_deg, r.seed) for r in results if not r.success]
+    assert rate >= SUCCESS_FLOORS[task], f"{task}: {rate:.1%} success; failed {failed}"
+    limit = gym.spec(TASK_ENV_IDS[task]).max_episode_steps
+    assert all(r.steps < limit for r in results if r.success)
+
+
+@pytest.mark.parametrize("task", list(TASK_ENV_IDS))
+def test_random_policy_never_succeeds_over_the_same_resets(make_env, task):
+    env = _state_env(make_env, task)
+    low, high = env.action_space.low, env.action_space.high
+    successes, steps = 0, 0
+    for seed, options in evaluation_resets():
+        rng = np.random.default_rng(seed)
+        env.reset(seed=seed, options=options)
+        while True:
+            _, _, terminated, truncated, info = env.step(rng.uniform(low, high))
+            steps += 1
+            if terminated or truncated:
+                break
+        successes += info["is_success"]
+    assert successes == 0
+    assert steps == 108 * gym.spec(TASK_ENV_IDS[task]).max_episode_steps
+
+
+@pytest.mark.parametrize("task", list(TASK_ENV_IDS))
+def test_dense_reward_rises_through_the_stages_of_an_expert_episode(make_env, task):
+    env = _state_env(make_env, task)
+    weights = env.unwrapped.task_logic.weights.terms
+    trace = _expert_trace(env, cell=8, yaw=60.0)
+    for step in trace:
+        terms = step["info"]["reward_terms"]
+        assert set(terms) == set(weights)
+        assert all(0.0 <= value <= 1.0 for value in terms.values())
+        assert step["reward"] == pytest.approx(sum(weights[k] * terms[k] for k in weights))
+    stage_best = []
+    for stage, phases in STAGES.items():
+        rewards = [s["reward"] for s in trace if s["phase"] in phases]
+        if stage in weights:
+            assert rewards, f"no step of the {stage} stage"
+            stage_best.append(max(rewards))
+    assert stage_best == sorted(stage_best) and len(set(stage_best)) == len(stage_best), (
+        f"stage maxima {stage_best} do not rise"
+    )
+    rewards = np.array([s["reward"] for s in trace])
+    assert (np.maximum.accumulate(rewards) - rewards).max() < 0.01, "the reward fell back"
+    assert trace[-1]["info"]["is_success"] and rewards[-1] == 1.0
+    assert rewards[:-1].max() < 1.0
+
+
+@pytest.mark.parametrize("task", list(TASK_ENV_IDS))
+def test_sparse_reward_is_the_success_flag_along_an_expert_episode(make_env, task):
+    env = _state_env(make_env, task, reward_type="sparse")
+    trace = _expert_trace(env, cell=0, yaw=30.0)
+    assert [s["reward"] for s in trace] == [float(s["info"]["is_success"]) for s in trace]
+    assert trace[-1]["reward"] == 1.0
+
+
+@pytest.mark.parametrize("cell, yaw", [(0, 0.0), (2, 45.0), (6, 30.0), (8, 60.0)])
+def test_grasped_cube_follows_the_grasp_site_while_lifted_and_carried(make_env, cell, yaw):
+    env = _state_env(make_env, "pick_and_place")
+    trace = _expert_trace(env, cell, yaw)
+    held = [s for s in trace if s["phase"] in ("lift", "carry")]
+    assert held and all(s["grasped"] for s in held), "the cube left the jaws"
+    carried = np.linalg.norm(held[-1]["cube"] - held[0]["cube"])
+    assert carried > 0.1, f"the cube moved only {carried:.3f} m"
+    in_site = np.array([s["cube_in_site"] for s in held])
+    slip = np.linalg.norm(in_site - in_site[0], axis=1).max()
+    assert slip <= MAX_SLIP_M, f"the cube slipped {slip * 1000:.1f} mm in the jaws"
+    assert np.linalg.norm(in_site, axis=1).max() <= MAX_SLIP_M  # centred on grasp_center
+    assert trace[-1]["info"]["is_success"]
+
+
+@pytest.mark.parametrize("obs_type", ["pixels", "pixels_agent_pos"])
+def test_expert_works_with_pixel_observations(make_env, obs_type):
+    env = make_env(TASK_ENV_IDS["lift"], obs_type=obs_type, **SMALL)
+    result = run_episode(env, make_expert(env), seed=3, options={"cube_grid_position": 5})
+    assert result.success
+
+
+def test_expert_works_in_lerobot_units(make_env):
+    env = _state_env(make_env, "lift", units="lerobot")
+    expert = gym_soarm.make_expert(env)
+    # Radians read as degrees would barely move the arm: success needs the right units.
+    result = run_episode(env, expert, seed=0, options={"cube_grid_position": 7})
+    assert result.success
+
+
+def test_expert_actions_are_smooth_and_never_touch_the_simulation(make_env):
+    env = _state_env(make_env, "pick_and_place")
+    physics = env.unwrapped.physics
+    expert = make_expert(env)
+    obs, info = env.reset(seed=1, options={"cube_grid_position": 3, "cube_rotation_deg": 45})
+    expert.reset()
+    previous = obs["agent_pos"]
+    while True:
+        before = (physics.data.qpos.copy(), physics.data.qvel.copy(), physics.data.ctrl.copy())
+        action = expert(obs, info)
+        after = (physics.data.qpos, physics.data.qvel, physics.data.ctrl)
+        for old, new in zip(before, after, strict=True):
+            np.testing.assert_array_equal(old, new)
+        assert action in env.action_space
+        assert np.abs(action[:5] - previous[:5]).max() < 0.1  # rad per 20 ms step
+        previous = action
+        obs, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            break
+    assert info["is_success"]
+
+
+def test_expert_grasps_again_when_the_cube_slips_away(make_env):
+    env = _state_env(make_env, "lift")
+    physics = env.unwrapped.physics
+    expert = make_expert(env)
+    obs, info = env.reset(seed=0, options={"cube_grid_position": 4, "cube_rotation_deg": 0})
+    expert.reset()
+    moved = False
+    while True:
+        if expert.phase == "close" and not moved:
+            # Shove the cube 4 cm sideways just as the jaws start to close.
+            position, quaternion = physics.cube_pose()
+            physics.set_cube_pose(position + np.array([0.04, 0.0, 0.0]), quaternion)
+            moved = True
+        obs, _, terminated, truncated, info = env.step(expert(obs, info))
+        if terminated or truncated:
+            break
+    assert moved and expert.regrasps == 1
+    assert info["is_success"]
+
+
+def test_expert_restarts_by_itself_after_an_env_reset(make_env):
+    env = _state_env(make_env, "lift")
+    expert = make_expert(env)
+    first = run_episode(env, expert, seed=0, options={"cube_grid_position": 1})
+    obs, info = env.reset(seed=0, options={"cube_grid_position": 1})  # no expert.reset()
+    steps = 0
+    while True:
+        obs, _, terminated, truncated, info = env.step(expert(obs, info))
+        steps += 1
+        if terminated or truncated:
+            break
+    assert info["is_success"] and steps == first.steps
+
+
+def test_make_expert_rejects_other_environments():
+    env = gym.make("CartPole-v1")
+    with pytest.raises(TypeError, match="gym_soarm"):
+        make_expert(env)
+    env.close()
+
+
+def test_cli_prints_the_success_rate(capsys):
+    main(["--task", "lift", "--seeds", "0"])
+    out = capsys.readouterr().out
+    assert out.startswith("lift: 36/36 = 100.0 % success")
