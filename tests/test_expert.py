@@ -222,3 +222,17 @@ def test_cli_prints_the_success_rate(capsys):
     main(["--task", "lift", "--seeds", "0"])
     out = capsys.readouterr().out
     assert out.startswith("lift: 36/36 = 100.0 % success")
+
+
+def test_goal_pad_is_clear_of_every_start_cell_and_seen_by_both_scene_cameras(make_env):
+    env = make_env("SoArm-v0", obs_type="pixels", camera_config="all", **SMALL)
+    env.reset(seed=0, options={"cube_grid_position": 6})
+    goal = env.unwrapped.physics.goal_position()[:2]
+    cube_reach = constants.CUBE_HALF_M * np.sqrt(2.0)  # centre to a corner, any yaw
+    for cell in range(constants.NUM_GRID_CELLS):
+        gap = np.linalg.norm(np.array(constants.grid_cell_position(cell)) - goal)
+        assert gap > constants.GOAL_RADIUS_M + cube_reach, f"the pad overlaps cell {cell}"
+    for camera in ("overview_camera", "front_camera"):
+        image = env.unwrapped.render_camera_image(camera, 120, 160).astype(int)
+        r, g, b = image[..., 0], image[..., 1], image[..., 2]
+        assert ((g > 120) & (g > r + 50) & (g > b + 50)).sum() > 10, f"no pad in {camera}"
