@@ -145,16 +145,84 @@ def gl_backend() -> str:
     return _select_backend()
 
 
+# Mesa keeps its rasteriser threads with each EGL display and, for OSMesa, once per
+# process. Threads do not survive fork(): a child that renders through a display its
+# parent rendered on waits for them forever. So we remember what this process, or an
+# ancestor it was forked from, has rendered with ("egl-device", "egl-surfaceless",
+# "osmesa"), and a forked child renders through a display of its own.
+_gl_used: set[str] = set()
+_inherited_gl: set[str] = set()  # backends whose state came from the parent through fork
+EGL_PLATFORM_SURFACELESS_MESA = 0x31DD
+FORK_ADVICE = (
+    "Mesa cannot render in a process forked from one that already rendered with it. "
+    "Create vector environments before rendering in the parent, or start their workers "
+    "with another start method: gym.make_vec(..., vectorization_mode='async', "
+    "vector_kwargs={'context': 'forkserver'}) (or 'spawn')."
+)
+
+
+def _open_fresh_egl_display() -> None:
+    """In a forked child, point MuJoCo's EGL contexts at a display the parent never used.
+
+    The parent's device display is unusable here (its rasteriser threads stayed in the
+    parent), and Mesa hands back that same display for every request on the same
+    platform; the surfaceless platform gives a separate display with its own threads.
+    """
+    import mujoco.egl as mujoco_egl
+    from mujoco.egl import egl_ext as EGL  # noqa: N812 - the EGL API's own spelling
+    from OpenGL import error as gl_error
+
+    if "egl-surfaceless" in _gl_used:
+        raise GLBackendError(
+            "This process was forked from one whose EGL displays (device and surfaceless) "
+            f"were both already rendering. {FORK_ADVICE}"
+        )
+    try:
+        display = EGL.eglGetPlatformDisplayEXT(
+            EGL_PLATFORM_SURFACELESS_MESA, EGL.EGL_DEFAULT_DISPLAY, None
+        )
+        ok = display != EGL.EGL_NO_DISPLAY and EGL.eglInitialize(display, None, None)
+    except gl_error.GLError as exc:
+        ok, display = False, exc
+    if not ok:
+        raise GLBackendError(
+            "This process was forked after its parent rendered with EGL, and no separate "
+            f"EGL display (EGL_MESA_platform_surfaceless) could be opened here. {FORK_ADVICE}"
+        )
+    mujoco_egl.EGL_DISPLAY = display
+    atexit.register(EGL.eglTerminate, display)
+    _gl_used.add("egl-surfaceless")
+    logger.info("forked after the parent rendered: using a separate EGL surfaceless display")
+
+
+def _prepare_after_fork(backend: str) -> None:
+    if backend not in _inherited_gl:
+        return
+    if backend == "osmesa":
+        raise GLBackendError(
+            f"This process was forked after its parent rendered with OSMesa. {FORK_ADVICE}"
+        )
+    if backend == "egl":
+        _open_fresh_egl_display()
+        _inherited_gl.discard("egl")
+
+
 def _new_gl_context(width: int, height: int):
     backend = _select_backend()
     context_class = _import_context_class(backend)
+    _prepare_after_fork(backend)
     try:
-        return context_class(width, height)
+        context = context_class(width, height)
     except Exception as exc:  # the backends raise assorted errors; report them as one
         raise GLBackendError(
             f"Could not create an OpenGL context with MUJOCO_GL={backend!r}: {exc}. "
             f"It needs: sudo apt-get install {BACKEND_APT_PACKAGES[backend]}."
         ) from exc
+    if backend == "egl" and "egl-surfaceless" not in _gl_used:
+        _gl_used.add("egl-device")  # mujoco.egl opens the device display on first use
+    elif backend == "osmesa":
+        _gl_used.add("osmesa")
+    return context
 
 
 _live_renderers: weakref.WeakSet[CameraRenderer] = weakref.WeakSet()
@@ -179,11 +247,25 @@ def _close_all_at_exit() -> None:
 
 
 def _forget_inherited_contexts() -> None:
-    """After fork the child must not touch the parent's GL contexts: drop them."""
+    """After fork the child must not touch the parent's GL contexts: drop them.
+
+    The child also notes which backends the parent rendered with, so that its first
+    context opens a display of its own (see :func:`_prepare_after_fork`).
+    """
     global _chosen_backend, _backend_pid
     for renderer in list(_live_renderers):
         renderer._abandon()
     _chosen_backend = _backend_pid = None
+    egl_module = sys.modules.get("mujoco.egl")
+    if egl_module is not None and getattr(egl_module, "EGL_DISPLAY", None) is not None:
+        _inherited_gl.add("egl")
+        # The parent's exit handler would terminate its display from here, which hangs
+        # or crashes the child at exit; a display opened here registers its own.
+        atexit.unregister(egl_module.EGL.eglTerminate)
+        if not _gl_used & {"egl-device", "egl-surfaceless"}:
+            _gl_used.add("egl-device")  # opened by other code through mujoco.egl
+    if "osmesa" in _gl_used:
+        _inherited_gl.add("osmesa")
 
 
 if hasattr(os, "register_at_fork"):
