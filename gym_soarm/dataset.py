@@ -859,7 +859,17 @@ class LeRobotDatasetWriter:
             [pa.array([i for _, i in tasks], pa.int64()), pa.array([t for t, _ in tasks])],
             schema=schema,
         )
-        episodes_table = pa.Table.from_pylist(self._episodes)
+        # Explicit column types: pyarrow's type inference is slow (it tries optional imports).
+        columns = list(self._episodes[0])
+        episodes_table = pa.Table.from_arrays(
+            [
+                pa.array(
+                    [row[c] for row in self._episodes], _python_arrow_type(pa, self._episodes[0][c])
+                )
+                for c in columns
+            ],
+            names=columns,
+        )
         staged = [
             (task_table, self.root / TASKS_PATH, "tasks.parquet"),
             (
@@ -875,6 +885,19 @@ class LeRobotDatasetWriter:
             os.replace(path, target)
         _write_json_atomically(self.root / STATS_PATH, self._dataset_stats(), self._scratch)
         self._write_info()
+
+
+def _python_arrow_type(pa: Any, value: Any) -> Any:
+    """The arrow type of an episodes-table value: int, float, str or nested lists of them."""
+    if isinstance(value, bool):
+        return pa.bool_()
+    if isinstance(value, int):
+        return pa.int64()
+    if isinstance(value, float):
+        return pa.float64()
+    if isinstance(value, str):
+        return pa.string()
+    return pa.list_(_python_arrow_type(pa, value[0]))
 
 
 def _safe(key: str) -> str:
