@@ -15,15 +15,16 @@ In the same run it measures the ceiling each configuration is compared with, in 
 fresh process that does not import gym_soarm: bare ``mujoco.mj_step`` with the same
 number of substeps for state observations, and a bare ``mujoco.Renderer`` on the same
 compiled model, cameras, image size and quality settings (shadows, reflections,
-multisampling) for pixel observations. The ratio to the ceiling shows how much the
-environment costs on top of what MuJoCo itself needs.
+multisampling) for pixel observations. The repeats of a configuration and of its
+ceiling alternate, so both see the same machine load; the ratio to the ceiling (the
+median of the per-repeat ratios) shows how much the environment costs on top of what
+MuJoCo itself needs.
 
 ``--processes N`` adds the aggregate throughput of ``N`` environments stepped together
 by ``gymnasium.vector.AsyncVectorEnv``. The cold ``make`` time (an empty model cache:
 simplify the meshes and compile) is measured once per visual variant.
 
-Timings on a shared machine are noisy: read the medians and the ratios, which are
-measured side by side in the same run.
+Timings on a shared machine are noisy: read the medians and the ratios.
 """
 
 from __future__ import annotations

@@ -95,3 +95,20 @@ def write(name: str, data: bytes) -> Path | None:
         logger.info("cannot write the cache file %s (%s); it will be rebuilt next time", path, exc)
         return None
     return path
+
+
+def prune(pattern: str, keep: str) -> None:
+    """Delete the cached files matching the glob ``pattern``, except ``keep``.
+
+    Called after a file was rebuilt from new sources, so that superseded versions do
+    not pile up. Files that cannot be deleted (in use elsewhere) are left alone.
+    """
+    folder = cache_dir()
+    if folder is None:
+        return
+    for path in folder.glob(pattern):
+        if path.relative_to(folder).as_posix() != keep:
+            try:
+                path.unlink()
+            except OSError as exc:
+                logger.info("cannot delete the superseded cache file %s (%s)", path, exc)

@@ -106,7 +106,8 @@ def _compiled_scene(visual: str) -> mujoco.MjModel:
     if path is not None:
         buffer = np.empty(mujoco.mj_sizeModel(model), dtype=np.uint8)
         mujoco.mj_saveModel(model, None, buffer)
-        cache.write(name, buffer.tobytes())
+        if cache.write(name, buffer.tobytes()) is not None:
+            cache.prune(f"models/scene-{visual}-*.mjb", keep=name)
     return model
 
 

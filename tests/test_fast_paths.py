@@ -152,6 +152,10 @@ def test_cache_dir_follows_the_environment_variable(monkeypatch, tmp_path):
     assert cache.write("a/b.bin", b"xyz") == tmp_path / "here" / "a" / "b.bin"
     assert cache.read("a/b.bin") == b"xyz"
     assert cache.read("a/missing.bin") is None
+    cache.write("a/c.bin", b"old")
+    cache.write("a/other.txt", b"kept")
+    cache.prune("a/*.bin", keep="a/b.bin")
+    assert sorted(p.name for p in (tmp_path / "here" / "a").iterdir()) == ["b.bin", "other.txt"]
     monkeypatch.setenv(cache.CACHE_DIR_ENV, "")
     assert cache.cache_dir() is None
     assert cache.write("a/b.bin", b"xyz") is None
@@ -181,9 +185,13 @@ def _load_in_subprocess(cache_dir: Path, visual: str) -> dict:
 
 
 def test_compiled_model_is_cached_reused_and_rebuilt_when_damaged(tmp_path):
+    stale = tmp_path / "models" / "scene-fast-0123456789abcdef01234567.mjb"
+    stale.parent.mkdir(parents=True)
+    stale.write_bytes(b"a model built from older sources")
     first = _load_in_subprocess(tmp_path, "fast")
     cached = tmp_path / first["name"]
     assert cached.is_file()
+    assert not stale.exists()  # superseded files are pruned
     assert len(list((tmp_path / "meshes").glob("*.stl"))) == len(meshes.MESH_SHA256)
     stamp = cached.stat().st_mtime_ns
     # The cached binary gives the same model as compiling the XML.
