@@ -410,8 +410,13 @@ class ScriptedExpert:
         if self.env.physics.cube_grasped() or self._regrasps >= self.config.max_regrasps:
             return True
         self._regrasps += 1
-        retry = [_Phase("rise", self.config.rise_steps, self._begin_rise), *self._grasp_phases()]
-        self._plan[self._phase_index : self._phase_index] = retry
+        # Start over from a grasp: rise, approach, descend, close, then lift and the rest.
+        rise = _Phase("rise", self.config.rise_steps, self._begin_rise)
+        self._plan[self._phase_index :] = [
+            rise,
+            *self._grasp_phases(),
+            *self._after_grasp_phases(),
+        ]
         self._begin_phase()
         return False
 

@@ -254,3 +254,30 @@ def test_goal_pad_is_clear_of_every_start_cell_and_seen_by_both_scene_cameras(ma
         image = env.unwrapped.render_camera_image(camera, 120, 160).astype(int)
         r, g, b = image[..., 0], image[..., 1], image[..., 2]
         assert ((g > 120) & (g > r + 50) & (g > b + 50)).sum() > 10, f"no pad in {camera}"
+
+
+def test_expert_picks_the_cube_up_again_after_dropping_it(make_env):
+    env = make_env(
+        TASK_ENV_IDS["pick_and_place"],
+        obs_type="environment_state_agent_pos",
+        max_episode_steps=700,
+    )
+    physics = env.unwrapped.physics
+    expert = make_expert(env)
+    obs, info = env.reset(seed=0, options={"cube_grid_position": 0, "cube_rotation_deg": 0})
+    expert.reset()
+    carry_steps = 0
+    while True:
+        if expert.phase == "carry":
+            carry_steps += 1
+            if carry_steps == 10:  # take the cube out of the jaws and put it back on the table
+                x, y = constants.grid_cell_position(4)
+                physics.set_cube_pose(
+                    np.array([x, y, constants.CUBE_HALF_M]),
+                    np.array([np.cos(0.17), 0.0, 0.0, np.sin(0.17)]),
+                )
+        obs, _, terminated, truncated, info = env.step(expert(obs, info))
+        if terminated or truncated:
+            break
+    assert carry_steps > 10 and expert.regrasps == 1
+    assert info["is_success"]
