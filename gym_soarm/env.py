@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import copy
 import math
 import numbers
+import reprlib
 import warnings
 from collections import OrderedDict
 from collections.abc import Mapping, Sequence
@@ -46,9 +48,14 @@ def _choices(values: Sequence[Any]) -> str:
     return ", ".join(repr(v) for v in values)
 
 
-def _check_choice(name: str, value: Any, valid: Sequence[Any]) -> None:
+def _check_choice(name: str, value: Any, valid: Sequence[Any], none_ok: bool = False) -> None:
+    if none_ok and value is None:
+        return
     if not isinstance(value, str) or value not in valid:
-        raise ValueError(f"{name} must be one of {_choices(valid)}; got {value!r}.")
+        options = _choices(valid) + (" or None" if none_ok else "")
+        raise ValueError(
+            f"{name} must be one of {options}; got {value!r}. Pass e.g. {name}={valid[0]!r}."
+        )
 
 
 def _check_image_size(name: str, value: Any) -> int:
@@ -80,8 +87,8 @@ def resolve_camera_config(camera_config: str | Sequence[str]) -> tuple[str, ...]
     unknown = [c for c in camera_config if c not in constants.CAMERA_NAMES]
     if unknown:
         raise ValueError(
-            f"camera_config names unknown cameras: got {unknown!r}; valid cameras are "
-            f"{_choices(constants.CAMERA_NAMES)}."
+            f"camera_config must name cameras from {_choices(constants.CAMERA_NAMES)}; got "
+            f"unknown cameras {unknown!r}. Pass e.g. camera_config=['front_camera']."
         )
     return tuple(c for c in constants.CAMERA_NAMES if c in camera_config)
 
@@ -119,6 +126,13 @@ class SoArmEnv(gym.Env):
     100 (0 = closed), as LeRobot's SO-101 follower; with ``units="lerobot_range"`` the
     body joints in -100 to 100 (see :mod:`gym_soarm.units`). The action bounds follow.
 
+    **Diverging physics**: when a step leaves the simulation with NaN/inf, raises a
+    MuJoCo instability warning, throws the cube more than 5 m or turns a joint past
+    +-pi, ``step`` warns (``RuntimeWarning``) and returns ``truncated=True``, reward 0,
+    ``info["physics_unstable"] = True`` and copies of the previous step's observation
+    and info (finite, inside the observation space; ``is_success`` False and every
+    reward term 0). The next ``step`` raises until ``reset()`` starts a clean episode.
+
     Args:
         task: ``"pick_and_place"`` or ``"lift"``.
         obs_type: one of :data:`OBS_TYPES`.
@@ -155,8 +169,7 @@ class SoArmEnv(gym.Env):
         cameras = resolve_camera_config(camera_config)
         height = _check_image_size("observation_height", observation_height)
         width = _check_image_size("observation_width", observation_width)
-        if render_mode is not None:
-            _check_choice("render_mode", render_mode, self.metadata["render_modes"])
+        _check_choice("render_mode", render_mode, self.metadata["render_modes"], none_ok=True)
         _check_choice("render_camera", render_camera, constants.CAMERA_NAMES)
         _check_choice("render_quality", render_quality, RENDER_QUALITIES)
         _check_choice("reward_type", reward_type, REWARD_TYPES)
@@ -186,6 +199,7 @@ class SoArmEnv(gym.Env):
         self._viewer = None
         self._closed = False
         self._needs_reset = True
+        self._no_episode_reason = "the episode has not started"
         self._step_count = 0
         self._last_obs: Any = None
         self._last_info: dict[str, Any] = {}
@@ -256,7 +270,8 @@ class SoArmEnv(gym.Env):
             bad = [constants.JOINT_NAMES[i] for i in np.flatnonzero(~np.isfinite(array))]
             raise ValueError(
                 f"action must be finite; got {array.tolist()!r} with NaN/inf for {bad}. "
-                "The simulation was not stepped."
+                "The simulation was not stepped; check the policy's output (e.g. its "
+                "normalisation statistics) before stepping."
             )
         if self.units != "radians":
             array = self._units.to_radians(array)
@@ -273,15 +288,19 @@ class SoArmEnv(gym.Env):
             ) from None
         if array.dtype == np.bool_ or not np.issubdtype(array.dtype, np.number):
             raise ValueError(
-                f"action must hold real numbers (float or int), got dtype {array.dtype}; "
-                f"pass e.g. np.asarray(action, dtype=np.float32)."
+                f"action must hold real numbers (float or int); got {reprlib.repr(action)} "
+                f"with dtype {array.dtype}. Pass e.g. np.asarray(action, dtype=np.float32)."
             )
         if np.issubdtype(array.dtype, np.complexfloating):
-            raise ValueError(f"action must be real-valued, got dtype {array.dtype}.")
+            raise ValueError(
+                f"action must be real-valued; got dtype {array.dtype}. "
+                "Pass the real part, e.g. np.real(action).astype(np.float32)."
+            )
         if array.shape != self.action_space.shape:
             raise ValueError(
                 f"action must have shape {self.action_space.shape} (one target per joint: "
-                f"{', '.join(constants.JOINT_NAMES)}); got shape {array.shape}."
+                f"{', '.join(constants.JOINT_NAMES)}); got shape {array.shape}. Pass one "
+                "target per joint, e.g. env.action_space.sample()."
             )
         return array
 
@@ -291,12 +310,14 @@ class SoArmEnv(gym.Env):
             return None, None
         if not isinstance(options, Mapping):
             raise ValueError(
-                f"options must be a dict with keys from {_choices(RESET_OPTION_KEYS)}; got {options!r}."
+                f"options must be a dict with keys from {_choices(RESET_OPTION_KEYS)}; got "
+                f"{options!r}. Pass e.g. options={{'cube_grid_position': 4}}."
             )
-        unknown = sorted(set(options) - {*RESET_OPTION_KEYS, LEROBOT_ROLLOUT_OPTION})
+        unknown = sorted(set(options) - {*RESET_OPTION_KEYS, LEROBOT_ROLLOUT_OPTION}, key=repr)
         if unknown:
             raise ValueError(
-                f"unknown reset option(s) {unknown!r}; valid options are {_choices(RESET_OPTION_KEYS)}."
+                f"unknown reset option(s) {unknown!r}: options must have keys from "
+                f"{_choices(RESET_OPTION_KEYS)}; got {list(options)!r}. Remove the others."
             )
         cell = options.get("cube_grid_position")
         if cell is not None:
@@ -316,10 +337,14 @@ class SoArmEnv(gym.Env):
             if isinstance(yaw, (bool, np.bool_)) or not isinstance(yaw, numbers.Real):
                 raise ValueError(
                     "cube_rotation_deg must be a finite number of degrees or None (random pick from "
-                    f"{constants.CUBE_YAWS_DEG}); got {yaw!r} of type {type(yaw).__name__}."
+                    f"{constants.CUBE_YAWS_DEG}); got {yaw!r} of type {type(yaw).__name__}. "
+                    "Pass e.g. 45.0."
                 )
             if not math.isfinite(float(yaw)):
-                raise ValueError(f"cube_rotation_deg must be finite; got {yaw!r}.")
+                raise ValueError(
+                    f"cube_rotation_deg must be a finite number of degrees; got {yaw!r}. Pass "
+                    "e.g. 45.0, or None for a random pick."
+                )
             yaw = float(yaw)
         return cell, yaw
 
@@ -327,7 +352,7 @@ class SoArmEnv(gym.Env):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[Any, dict[str, Any]]:
-        self._check_open()
+        self._check_open("reset")
         cell, yaw = self._validate_options(options)
         super().reset(seed=seed)
         self._task.configure_episode(self.np_random, cell, yaw)
@@ -342,29 +367,20 @@ class SoArmEnv(gym.Env):
         return obs, info
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
-        self._check_open()
+        self._check_open("step")
         target = self._validate_action(action)
         if self._needs_reset:
-            raise RuntimeError("call reset() before step(): the episode has not started")
+            raise RuntimeError(f"call reset() before step(): {self._no_episode_reason}.")
         self._task.before_step(target, self._physics)
-        unstable = False
         try:
             self._physics.step(constants.N_SUBSTEPS)
         except control.PhysicsError as exc:
-            unstable, reason = True, str(exc)
-        if not unstable and not self._physics.state_is_finite():
-            unstable, reason = True, "the simulation state holds NaN or inf"
+            divergence = str(exc)
+        else:
+            divergence = self._divergence()
         self._step_count += 1
-        if unstable:
-            warnings.warn(
-                f"The physics diverged ({reason}); the episode is truncated. Call reset() to "
-                "start a clean episode.",
-                RuntimeWarning,
-                stacklevel=2,
-            )
-            self._needs_reset = True
-            info = dict(self._last_info, is_success=False, physics_unstable=True)
-            return self._last_obs, 0.0, False, True, info
+        if divergence is not None:
+            return self._truncate_diverged_episode(divergence)
         success = self._task.is_success(self._physics)
         terms = self._task.reward_terms(self._physics, success=success)
         reward = float(success) if self.reward_type == "sparse" else self._task.weights.total(terms)
@@ -375,7 +391,7 @@ class SoArmEnv(gym.Env):
         return obs, reward, success, False, info
 
     def render(self) -> np.ndarray | None:
-        self._check_open()
+        self._check_open("render")
         if self.render_mode == "rgb_array":
             return self.render_camera_image(self.render_camera)
         if self.render_mode == "human" and self._viewer is not None:
@@ -395,9 +411,61 @@ class SoArmEnv(gym.Env):
         self._last_obs = None
 
     # --- helpers ---------------------------------------------------------------------------
-    def _check_open(self) -> None:
+    def _check_open(self, method: str) -> None:
         if self._closed:
-            raise RuntimeError("this environment was closed; create a new one with gym.make(...)")
+            raise RuntimeError(
+                f"{method}() was called after close(): this environment was closed and its GL "
+                "contexts and windows freed. Create a new one with gym.make(...)."
+            )
+
+    def _divergence(self) -> str | None:
+        """Why the simulation state is no longer physical, or None while it is sound.
+
+        Besides NaN/inf (MuJoCo's own instability warnings raise ``PhysicsError`` in
+        ``step``), a cube thrown beyond the observation bounds or a joint turned past
+        +-pi can only come from an exploding simulation.
+        """
+        physics = self._physics
+        if not physics.state_is_finite():
+            return "the simulation state holds NaN or inf"
+        # Plain floats: a few numpy reductions would cost more than the rest of the check.
+        cube = physics.cube_position().tolist()
+        if max(map(abs, cube)) > _POSITION_BOUND_M:
+            return (
+                f"the cube was thrown to {[round(v, 2) for v in cube]} m, more than "
+                f"{_POSITION_BOUND_M} m from the table"
+            )
+        angles = physics.joint_angles().tolist()
+        if max(map(abs, angles)) > math.pi:
+            name, angle = max(
+                zip(constants.JOINT_NAMES, angles, strict=True), key=lambda item: abs(item[1])
+            )
+            return f"joint {name!r} turned to {angle:.2f} rad"
+        return None
+
+    def _truncate_diverged_episode(self, reason: str) -> tuple[Any, float, bool, bool, dict]:
+        """End the episode after a divergence with the last sound observation and info.
+
+        The observation and info are fresh copies of those of the previous step (the
+        diverged state is not observed); the reward and its terms are 0.
+        """
+        warnings.warn(
+            f"The physics diverged ({reason}); the episode is truncated. Call reset() to "
+            "start a clean episode.",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        self._needs_reset = True
+        self._no_episode_reason = (
+            f"the previous step truncated the episode because the physics diverged ({reason})"
+        )
+        info = copy.deepcopy(self._last_info)
+        info.update(
+            is_success=False,
+            reward_terms=dict.fromkeys(info["reward_terms"], 0.0),
+            physics_unstable=True,
+        )
+        return copy.deepcopy(self._last_obs), 0.0, False, True, info
 
     def render_camera_image(
         self, camera: str, height: int | None = None, width: int | None = None
@@ -407,7 +475,7 @@ class SoArmEnv(gym.Env):
         ``height``/``width`` default to the observation size; another size gets a
         renderer of its own (created once, reused).
         """
-        self._check_open()
+        self._check_open("render_camera_image")
         _check_choice("camera", camera, constants.CAMERA_NAMES)
         h = self.observation_height if height is None else _check_image_size("height", height)
         w = self.observation_width if width is None else _check_image_size("width", width)

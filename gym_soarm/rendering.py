@@ -23,6 +23,8 @@ import weakref
 import mujoco
 import numpy as np
 
+from gym_soarm.display import has_display
+
 logger = logging.getLogger(__name__)
 
 RENDER_QUALITIES = ("fast", "high")
@@ -124,20 +126,27 @@ def _select_backend() -> str:
             if backend == "osmesa" and not ctypes.util.find_library("OSMesa"):
                 tried.append("osmesa: libOSMesa not found")
                 continue
+            if backend == "glfw" and not has_display():
+                tried.append("glfw: it opens a hidden window, but DISPLAY is not set")
+                continue
             try:
                 _import_context_class(backend)
             except (ImportError, OSError, RuntimeError, AttributeError) as exc:
-                tried.append(f"{backend}: {exc}")
+                tried.append(f"{backend}: {_sentence(exc)}")
                 continue
             _chosen_backend, _backend_pid = backend, os.getpid()
             return backend
         packages = " ".join(BACKEND_APT_PACKAGES[b] for b in candidates)
         raise GLBackendError(
-            "No OpenGL backend can render offscreen. Tried: "
-            + "; ".join(tried)
-            + f". On Debian/Ubuntu install them with: sudo apt-get install {packages}"
-            + " (or set MUJOCO_GL to a backend that works here)."
+            f"No OpenGL backend can render offscreen. Tried: {'; '.join(tried)}. "
+            f"On Debian/Ubuntu install what they need with: sudo apt-get install {packages}; "
+            f"or set MUJOCO_GL to a backend that works here (one of {', '.join(_VALID_MUJOCO_GL)})."
         )
+
+
+def _sentence(exc: BaseException) -> str:
+    """An exception's message without its final full stop, to embed in ours."""
+    return str(exc).strip().rstrip(".")
 
 
 def gl_backend() -> str:
@@ -214,9 +223,11 @@ def _new_gl_context(width: int, height: int):
     try:
         context = context_class(width, height)
     except Exception as exc:  # the backends raise assorted errors; report them as one
+        others = ", ".join(b for b in _VALID_MUJOCO_GL if b != backend)
         raise GLBackendError(
-            f"Could not create an OpenGL context with MUJOCO_GL={backend!r}: {exc}. "
-            f"It needs: sudo apt-get install {BACKEND_APT_PACKAGES[backend]}."
+            f"Could not create an OpenGL context with MUJOCO_GL={backend!r}: {_sentence(exc)}. "
+            f"It needs: sudo apt-get install {BACKEND_APT_PACKAGES[backend]}; or set MUJOCO_GL "
+            f"to another backend ({others}), or unset it to let gym_soarm choose."
         ) from exc
     if backend == "egl" and "egl-surfaceless" not in _gl_used:
         _gl_used.add("egl-device")  # mujoco.egl opens the device display on first use
