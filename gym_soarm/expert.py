@@ -406,7 +406,10 @@ class ScriptedExpert:
             phase.begin()
 
     def _holding(self) -> bool:
-        """True if the cube is in the jaws; otherwise schedules a new grasp (if allowed)."""
+        """False if the cube is not in the jaws and a new grasp has been scheduled instead.
+
+        Once ``config.max_regrasps`` retries are used up the script carries on regardless.
+        """
         if self.env.physics.cube_grasped() or self._regrasps >= self.config.max_regrasps:
             return True
         self._regrasps += 1
