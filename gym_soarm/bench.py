@@ -60,6 +60,7 @@ DEFAULT_JSON = "gym_soarm_bench.json"
 ENV_ID = "SoArm-v0"
 ACTION_SEED = 0
 N_ACTIONS = 1024  # random actions drawn up front and cycled, so drawing costs nothing
+SLICES_PER_REPEAT = 4  # each repeat alternates this many slices of env and ceiling
 STATE_RESETS = 50
 PIXEL_RESETS = 5
 
@@ -143,28 +144,29 @@ def _peak_rss_mb() -> float | None:
 
 
 # --- workers (each runs in a process of its own) ------------------------------------------
-# A worker prints "READY <json>" when set up, then answers each "run" line on its stdin
-# with "REPEAT <json>" (one timed repeat) and "done" with "RESULT <json>" before exiting.
-# The parent alternates the repeats of a configuration and of its ceiling, so that both
-# see the same machine load and their ratio holds even on a busy machine.
+# A worker prints "READY <json>" when set up, then answers each "run <seconds>" line on
+# its stdin with "SLICE <json>" (steps taken and seconds spent in them) and "done" with
+# "RESULT <json>" before exiting. The parent alternates short slices of a configuration
+# and of its ceiling, so that both see the same machine load and their ratio holds even
+# on a busy machine.
 
 
 def _emit(tag: str, payload: dict) -> None:
     print(f"{tag} {json.dumps(payload)}", flush=True)
 
 
-def _serve(ready: dict, run_once: Callable[[], dict], finish: Callable[[], dict]) -> None:
+def _serve(ready: dict, run_slice: Callable[[float], dict], finish: Callable[[], dict]) -> None:
     _emit("READY", ready)
     for line in sys.stdin:
-        command = line.strip()
+        command, _, argument = line.strip().partition(" ")
         if command == "run":
-            _emit("REPEAT", run_once())
+            _emit("SLICE", run_slice(float(argument)))
         elif command == "done":
             _emit("RESULT", finish())
             return
 
 
-def _env_worker(config: BenchConfig, seconds: float, model_out: str) -> None:
+def _env_worker(config: BenchConfig, model_out: str) -> None:
     """Set one environment of ``config`` up and time its steps on request."""
     import numpy as np
 
@@ -212,7 +214,7 @@ def _env_worker(config: BenchConfig, seconds: float, model_out: str) -> None:
         env.step(actions[i])
     counter = [0]
 
-    def run_once() -> dict:
+    def run_slice(seconds: float) -> dict:
         stepped = 0.0
         render_seconds[0] = 0.0
         n = 0
@@ -230,11 +232,7 @@ def _env_worker(config: BenchConfig, seconds: float, model_out: str) -> None:
             if t1 >= deadline:
                 break
         counter[0] = i
-        return {
-            "steps_per_s": n / stepped,
-            "step_ms": stepped / n * 1e3,
-            "render_ms": render_seconds[0] / n * 1e3,
-        }
+        return {"steps": n, "seconds": stepped, "render_seconds": render_seconds[0]}
 
     physics = env.unwrapped.physics
     mj_data = physics.data.ptr
@@ -262,7 +260,7 @@ def _env_worker(config: BenchConfig, seconds: float, model_out: str) -> None:
         env.close()
         return {"peak_rss_mb": _peak_rss_mb()}
 
-    _serve(ready, run_once, finish)
+    _serve(ready, run_slice, finish)
 
 
 def _measure_vector(config: BenchConfig, seconds: float, repeats: int, processes: int) -> dict:
@@ -335,7 +333,6 @@ data.qpos[:] = state["qpos"]
 data.qvel[:] = state["qvel"]
 data.ctrl[:] = state["ctrl"]
 mujoco.mj_forward(model, data)
-seconds = job["seconds"]
 ready = {}
 if job["mode"] == "step":
     rng = np.random.default_rng(job["seed"])
@@ -345,7 +342,7 @@ if job["mode"] == "step":
     start = (data.qpos.copy(), data.qvel.copy())
     counter = [0]
 
-    def run_once():
+    def run_slice(seconds):
         n, spent, i = 0, 0.0, counter[0]
         deadline = time.perf_counter() + seconds
         while True:
@@ -362,7 +359,7 @@ if job["mode"] == "step":
             if t1 >= deadline:
                 break
         counter[0] = i
-        return {"steps_per_s": n / spent}
+        return {"steps": n, "seconds": spent}
 else:
     renderer = mujoco.Renderer(model, job["height"], job["width"])
     high = job["quality"] == "high"
@@ -378,7 +375,7 @@ else:
     except Exception as exc:
         ready["gl_renderer"] = "unknown (%s)" % type(exc).__name__
 
-    def run_once():
+    def run_slice(seconds):
         n = 0
         t0 = time.perf_counter()
         deadline = t0 + seconds
@@ -389,13 +386,13 @@ else:
             n += 1
             if time.perf_counter() >= deadline:
                 break
-        return {"steps_per_s": n / (time.perf_counter() - t0)}
+        return {"steps": n, "seconds": time.perf_counter() - t0}
 
 emit("READY", ready)
 for line in sys.stdin:
-    command = line.strip()
+    command, _, argument = line.strip().partition(" ")
     if command == "run":
-        emit("REPEAT", run_once())
+        emit("SLICE", run_slice(float(argument)))
     elif command == "done":
         if job["mode"] != "step":
             renderer.close()
@@ -470,12 +467,7 @@ def measure_config(
     timeout = 180 + 3 * seconds * repeats
     model_path = workdir / f"{config.name}.mjb"
     result: dict[str, Any] = {"name": config.name, **config.env_kwargs()}
-    env_job = {
-        "kind": "env",
-        "config": config.name,
-        "seconds": seconds,
-        "model_out": str(model_path),
-    }
+    env_job = {"kind": "env", "config": config.name, "model_out": str(model_path)}
     env_child = _Child(_worker_args(env_job), dict(os.environ), timeout)
     ceiling_child = None
     try:
@@ -485,7 +477,6 @@ def measure_config(
         ceiling_job = {
             "model": str(model_path),
             "state": state,
-            "seconds": seconds,
             "substeps": ready["substeps"],
             "episode_steps": ready["episode_steps"],
             "seed": ACTION_SEED,
@@ -501,24 +492,32 @@ def measure_config(
         )
         ceiling_ready = ceiling_child.expect("READY")
         env_runs, ceiling_runs = [], []
-        for _ in range(repeats):  # alternate, so both see the same load
-            env_runs.append(env_child.ask("run", "REPEAT"))
-            ceiling_runs.append(ceiling_child.ask("run", "REPEAT"))
+        for _ in range(repeats):
+            env_run = {"steps": 0, "seconds": 0.0, "render_seconds": 0.0}
+            ceiling_run = {"steps": 0, "seconds": 0.0}
+            for _ in range(SLICES_PER_REPEAT):  # alternate, so both see the same load
+                for totals, child in ((env_run, env_child), (ceiling_run, ceiling_child)):
+                    part = child.ask(f"run {seconds / SLICES_PER_REPEAT!r}", "SLICE")
+                    for key in totals:
+                        totals[key] += part[key]
+            env_runs.append(env_run)
+            ceiling_runs.append(ceiling_run)
         result.update(env_child.ask("done", "RESULT"))
         ceiling_child.ask("done", "RESULT")
     finally:
         env_child.close()
         if ceiling_child is not None:
             ceiling_child.close()
-    step_ms = [r["step_ms"] for r in env_runs]
-    render_ms = [r["render_ms"] for r in env_runs]
-    result["steps_per_s"] = _spread([r["steps_per_s"] for r in env_runs])
+    env_rates = [r["steps"] / r["seconds"] for r in env_runs]
+    step_ms = [r["seconds"] / r["steps"] * 1e3 for r in env_runs]
+    render_ms = [r["render_seconds"] / r["steps"] * 1e3 for r in env_runs]
+    result["steps_per_s"] = _spread(env_rates)
     result["ms_per_step"] = {
         "total": statistics.median(step_ms),
         "render": statistics.median(render_ms),
         "physics": statistics.median([s - r for s, r in zip(step_ms, render_ms, strict=True)]),
     }
-    ceiling_rates = [r["steps_per_s"] for r in ceiling_runs]
+    ceiling_rates = [r["steps"] / r["seconds"] for r in ceiling_runs]
     result["ceiling"] = {
         "kind": (
             f"mujoco.Renderer, {len(ready['camera_ids'])} camera(s)"
@@ -530,9 +529,9 @@ def measure_config(
     }
     if "gl_renderer" in ceiling_ready:
         result["gl_renderer"] = ceiling_ready["gl_renderer"]
-    # Median of the ratios of repeats run back to back.
+    # Median of the ratios of repeats whose slices alternated.
     result["ratio_to_ceiling"] = statistics.median(
-        e["steps_per_s"] / c for e, c in zip(env_runs, ceiling_rates, strict=True)
+        e / c for e, c in zip(env_rates, ceiling_rates, strict=True)
     )
     if processes > 1:
         vector_job = {
@@ -693,7 +692,7 @@ def _worker_main(job_text: str) -> None:
     job = json.loads(job_text)
     kind = job["kind"]
     if kind == "env":
-        _env_worker(BenchConfig.parse(job["config"]), job["seconds"], job["model_out"])
+        _env_worker(BenchConfig.parse(job["config"]), job["model_out"])
         return
     if kind == "vector":
         config = BenchConfig.parse(job["config"])
