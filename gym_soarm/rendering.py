@@ -5,7 +5,8 @@
   and fall back to OSMesa. EGL is probed with plain ``ctypes`` before PyOpenGL is
   imported, because PyOpenGL binds to one platform for the life of the process.
 * Contexts are created on first use, inside the process that renders (never inherited
-  through ``fork``), one per image size, and reused for every frame.
+  through ``fork``), one per image size, and reused for every frame. A child forked
+  after its parent rendered with EGL renders through an EGL display of its own.
 * Every frame is a fresh C-contiguous ``uint8`` array of shape (H, W, 3).
 """
 

@@ -198,6 +198,7 @@ def _assert_helpful(message: str, name: str, got: str) -> None:
     assert FIX.search(message), f"no fix offered: {message}"
 
 
+@pytest.mark.filterwarnings("ignore:.*not in the possible render_modes")  # Gymnasium's own
 @pytest.mark.parametrize(("name", "value"), BAD_MAKE_KWARGS)
 def test_bad_make_keyword_messages_are_complete(name, value):
     with pytest.raises(ValueError) as excinfo:
