@@ -124,13 +124,17 @@ def main() -> None:
     )
     args = parser.parse_args()
     report: dict = {"pid": os.getpid(), "backend": None}
+    parent_env = None
     if args.render_first:
-        env = gym.make(ENV_ID, **KWARGS)
-        env.reset(seed=0)
-        env.close()
+        # Kept open while the workers run: its GL context is alive when they fork.
+        parent_env = gym.make(ENV_ID, **KWARGS)
+        parent_env.reset(seed=0)
         report["backend"] = rendering.gl_backend()
     report["parent_rendered_before"] = _egl_display_open()
     report["vector"] = run_vector(args.mode, args.context)
+    if parent_env is not None:
+        parent_env.step(parent_env.action_space.sample())  # the parent still renders
+        parent_env.close()
     # Async workers render in their own processes: the parent must not have needed GL.
     report["parent_rendered_after_vector"] = _egl_display_open()
     report["serial"] = run_serial()
