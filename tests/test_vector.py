@@ -24,6 +24,12 @@ STARTUP_TIMEOUT_S = 300
 FORK_TIMEOUT_S = 120
 
 
+def clean_environ() -> dict[str, str]:
+    """This process's environment without its GL choice (PyOpenGL's platform is set once
+    EGL is in use here), so that each probe picks its own backend."""
+    return {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+
+
 def run_probe(*args: str, timeout: float, env: dict[str, str] | None = None):
     """Run the probe script; return (returncode, report or None, stderr)."""
     proc = subprocess.Popen(
@@ -32,7 +38,7 @@ def run_probe(*args: str, timeout: float, env: dict[str, str] | None = None):
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,  # its workers share the session and are killed with it
-        env={**os.environ, **(env or {})},
+        env={**clean_environ(), **(env or {})},
     )
     try:
         out, err = proc.communicate(timeout=timeout)
