@@ -4,8 +4,10 @@
 
 Runs the scripted expert until the open jaws are over the cube (the same state in both
 qualities: the physics does not depend on them), then renders the arm through the
-front camera (a crop of a 640x480 frame) and the wrist camera in ``fast`` (top row)
-and ``high`` (bottom row). Rerun it after a change to the scene or to the meshes.
+front camera (a crop of a 640x480 frame) and the wrist camera in ``fast`` (top row),
+with the ``fast`` settings but the provider's meshes (middle row: what the mesh
+simplification alone changes) and in ``high`` (bottom row). Rerun it after a change
+to the scene or to the meshes.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import imageio.v3 as iio
 import numpy as np
 
 import gym_soarm
+from gym_soarm.rendering import CameraRenderer
 
 OUTPUT = Path(__file__).resolve().parents[1] / "docs" / "quality_fast_vs_high.png"
 FRONT_SIZE = (480, 640)  # rendered (height, width); the arm is cropped out of it
@@ -28,12 +31,19 @@ GAP = 4
 APPROACH_STEPS = 60
 LABELS = {
     "fast": ("fast", "simplified meshes", "no shadows", "no reflections", "no multisampling"),
+    "provider meshes": ("fast settings", "with the provider", "meshes"),
     "high": ("high", "provider meshes", "shadows", "reflections", "4x multisampling"),
 }
 
 
-def views(quality: str, seed: int, grid_cell: int, steps: int) -> list[np.ndarray]:
-    """Front-camera crop and wrist-camera image after ``steps`` expert steps."""
+def views(
+    quality: str, seed: int, grid_cell: int, steps: int, settings: str | None = None
+) -> list[np.ndarray]:
+    """Front-camera crop and wrist-camera image after ``steps`` expert steps.
+
+    ``quality`` picks the meshes (and the renderer settings unless ``settings`` names
+    other ones).
+    """
     env = gym.make(
         "SoArm-v0",
         obs_type="pixels",
@@ -50,14 +60,26 @@ def views(quality: str, seed: int, grid_cell: int, steps: int) -> list[np.ndarra
         expert.reset()
         for _ in range(steps):
             obs, _, _, _, info = env.step(expert(obs, info))
-        front = env.unwrapped.render_camera_image("front_camera", *FRONT_SIZE)
-        return [front[FRONT_CROP], obs["wrist_camera"]]
+        if settings is None:
+            front = env.unwrapped.render_camera_image("front_camera", *FRONT_SIZE)
+            return [front[FRONT_CROP], obs["wrist_camera"]]
+        physics = env.unwrapped.physics
+        images = []
+        for camera, (height, width) in (("front_camera", FRONT_SIZE), ("wrist_camera", WRIST_SIZE)):
+            renderer = CameraRenderer(physics.model.ptr, width, height, settings)
+            try:
+                images.append(
+                    renderer.render(physics.data.ptr, physics.model.name2id(camera, "camera"))
+                )
+            finally:
+                renderer.close()
+        return [images[0][FRONT_CROP], images[1]]
     finally:
         env.close()
 
 
 def compose(rows: dict[str, list[np.ndarray]]) -> np.ndarray:
-    """One row per quality, a label on the left of each."""
+    """One row per variant, a label on the left of each."""
     import cv2
 
     height = rows["fast"][0].shape[0]
@@ -90,7 +112,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--grid-cell", type=int, default=4)
     parser.add_argument("--steps", type=int, default=APPROACH_STEPS)
     args = parser.parse_args(argv)
-    rows = {q: views(q, args.seed, args.grid_cell, args.steps) for q in ("fast", "high")}
+    rows = {
+        "fast": views("fast", args.seed, args.grid_cell, args.steps),
+        "provider meshes": views("high", args.seed, args.grid_cell, args.steps, settings="fast"),
+        "high": views("high", args.seed, args.grid_cell, args.steps),
+    }
     sheet = compose(rows)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     iio.imwrite(args.output, sheet, optimize=True)

@@ -130,7 +130,7 @@ def test_simplified_meshes_keep_the_extent_of_each_part():
             (v_new.min(axis=0), v_src.min(axis=0)),
             (v_new.max(axis=0), v_src.max(axis=0)),
         ):
-            np.testing.assert_allclose(new, src, atol=1.5e-3, err_msg=name)
+            np.testing.assert_allclose(new, src, atol=1e-3, err_msg=name)
 
 
 def test_stl_round_trip_and_rejects_non_stl_bytes():
