@@ -101,6 +101,15 @@ class SoArmPhysics(dm_mujoco.Physics):
             dtype=np.intp,
         )
         self._home_key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, constants.HOME_KEYFRAME)
+        # Views of the named quantities; the accessors hand out copies of them.
+        q, v = self._cube_qpos_adr, self._cube_dof_adr
+        self._cube_pos = self._qpos[q : q + 3]
+        self._cube_quat = self._qpos[q + 3 : q + 7]
+        self._cube_z_and_quat = self._qpos[q + 2 : q + 7]
+        self._cube_linvel = self._qvel[v : v + 3]
+        self._gripper_xpos = self._site_xpos[self._gripper_site]
+        self._grasp_xpos = self._site_xpos[self._grasp_site]
+        self._goal_xpos = self._site_xpos[self._goal_site]
 
     # --- stepping --------------------------------------------------------------------
     def step(self, nstep: int = 1) -> None:
@@ -175,7 +184,7 @@ class SoArmPhysics(dm_mujoco.Physics):
 
     def gripper_position(self) -> np.ndarray:
         """World position (m) of the ``gripperframe`` site, the tool centre point."""
-        return self._site_xpos[self._gripper_site].copy()
+        return self._gripper_xpos.copy()
 
     def gripper_orientation(self) -> np.ndarray:
         """World rotation matrix (3, 3) of the ``gripperframe`` site."""
@@ -183,7 +192,7 @@ class SoArmPhysics(dm_mujoco.Physics):
 
     def grasp_center(self) -> np.ndarray:
         """World position (m) where a held cube's centre sits, between the jaws."""
-        return self._site_xpos[self._grasp_site].copy()
+        return self._grasp_xpos.copy()
 
     def jaw_touch(self) -> np.ndarray:
         """Normal force (N) sensed by the fixed and the moving jaw pad."""
@@ -220,13 +229,11 @@ class SoArmPhysics(dm_mujoco.Physics):
     # --- cube and goal ------------------------------------------------------------
     def cube_position(self) -> np.ndarray:
         """World position (m) of the cube's centre."""
-        a = self._cube_qpos_adr
-        return self._qpos[a : a + 3].copy()
+        return self._cube_pos.copy()
 
     def cube_quaternion(self) -> np.ndarray:
         """Cube orientation as a (w, x, y, z) quaternion."""
-        a = self._cube_qpos_adr + 3
-        return self._qpos[a : a + 4].copy()
+        return self._cube_quat.copy()
 
     def cube_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """Cube position (m) and (w, x, y, z) quaternion."""
@@ -234,13 +241,11 @@ class SoArmPhysics(dm_mujoco.Physics):
 
     def cube_velocity(self) -> np.ndarray:
         """Cube linear velocity (m/s) in the world frame."""
-        a = self._cube_dof_adr
-        return self._qvel[a : a + 3].copy()
+        return self._cube_linvel.copy()
 
     def cube_bottom_height(self) -> float:
         """Height (m) of the cube's lowest corner above the table top."""
-        a = self._cube_qpos_adr
-        centre_z, *quat = self._qpos[a + 2 : a + 7].tolist()
+        centre_z, *quat = self._cube_z_and_quat.tolist()
         reach = constants.CUBE_HALF_M * _quat_to_zaxis_abs_sum(quat)
         return float(centre_z - reach - constants.TABLE_TOP_Z_M)
 
@@ -254,7 +259,7 @@ class SoArmPhysics(dm_mujoco.Physics):
 
     def goal_position(self) -> np.ndarray:
         """World position (m) of the goal pad's top centre."""
-        return self._site_xpos[self._goal_site].copy()
+        return self._goal_xpos.copy()
 
     # --- whole state -----------------------------------------------------------------
     def reset_to_home(self) -> None:
