@@ -168,16 +168,13 @@ def _serve(ready: dict, run_slice: Callable[[float], dict], finish: Callable[[],
 
 def _env_worker(config: BenchConfig, model_out: str) -> None:
     """Set one environment of ``config`` up and time its steps on request."""
-    import numpy as np
-
-    t0 = time.perf_counter()
     import gymnasium as gym
     import mujoco
+    import numpy as np
 
     import gym_soarm
     from gym_soarm import cache, constants, model, rendering
 
-    import_s = time.perf_counter() - t0
     cache_file = cache.cached_path(model.model_cache_name(config.render_quality))
     model_cache_hit = cache_file is not None and cache_file.is_file()
 
@@ -238,7 +235,6 @@ def _env_worker(config: BenchConfig, model_out: str) -> None:
     mj_data = physics.data.ptr
     mujoco.mj_saveModel(physics.model.ptr, model_out, None)
     ready = {
-        "import_s": import_s,
         "make_s": make_s,
         "model_cache_hit": model_cache_hit,
         "first_reset_ms": first_reset_ms,

@@ -141,8 +141,9 @@ class SoArmEnv(gym.Env):
         observation_width: image width in pixels (16 to 2048).
         render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
         render_camera: camera returned by ``render()`` in ``rgb_array`` mode.
-        render_quality: ``"fast"`` (no shadows, reflections or multisampling) or
-            ``"high"`` (shadows and 4x multisampling).
+        render_quality: ``"fast"`` (simplified visual meshes; no shadows, reflections or
+            multisampling) or ``"high"`` (the provider's meshes, shadows, reflections and
+            4x multisampling). The physics is the same for both.
         reward_type: ``"dense"`` (weighted named terms in [0, 1]) or ``"sparse"``.
         units: joint units of actions and ``agent_pos``: ``"radians"``, ``"lerobot"``
             or ``"lerobot_range"``.

@@ -10,8 +10,8 @@ is rebuilt once:
 2. quadric edge-collapse decimation (the ``fast-simplification`` package) removes
    :data:`DECIMATION_REDUCTION` (30 %) of the triangles that remain.
 
-About 7 % of the triangles survive (21,500), each part keeps its extent to half a
-millimetre; frames render several times faster and differ by a few grey levels
+About 7 % of the triangles survive (21,500), each part keeps its extent to within
+about half a millimetre; frames render several times faster and differ by a few grey levels
 (``docs/quality_fast_vs_high.png`` shows both). These settings came from measuring
 render time and the difference to the provider's meshes at the wrist camera, which
 sees the gripper closest. Physics never sees these meshes: the visual geoms have no
