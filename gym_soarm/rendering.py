@@ -317,7 +317,15 @@ class CameraRenderer:
         model.vis.quality.offsamples = 4 if high else 0
         self._gl = _new_gl_context(self.width, self.height)
         self._gl.make_current()
-        self._mjr = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+        # "fast" draws no shadows, so it needs no shadow map (2048^2 depth texture: 16 MB
+        # of RAM with a software rasteriser). The model's own setting is left as it was.
+        shadowsize = model.vis.quality.shadowsize
+        if not high:
+            model.vis.quality.shadowsize = 0
+        try:
+            self._mjr = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+        finally:
+            model.vis.quality.shadowsize = shadowsize
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._mjr)
         self._scene = mujoco.MjvScene(model, maxgeom=500)
         self._scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = high
