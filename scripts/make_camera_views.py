@@ -9,21 +9,18 @@ writes them side by side with their names. Rerun it after a change to the scene.
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import gymnasium as gym
-import imageio.v3 as iio
 import numpy as np
+from picture_tools import parse_picture_args, run_to_approach, write_picture
 
-import gym_soarm
 from gym_soarm import constants
 
 OUTPUT = Path(__file__).resolve().parents[1] / "docs" / "camera_views.png"
 TILE_HEIGHT, TILE_WIDTH = 240, 320
 LABEL_HEIGHT = 26
 GAP = 4
-APPROACH_STEPS = 60  # the expert's approach: jaws open above the cube
 
 
 def camera_views(seed: int, grid_cell: int, steps: int) -> dict[str, np.ndarray]:
@@ -37,13 +34,7 @@ def camera_views(seed: int, grid_cell: int, steps: int) -> dict[str, np.ndarray]
         render_quality="high",
     )
     try:
-        obs, info = env.reset(
-            seed=seed, options={"cube_grid_position": grid_cell, "cube_rotation_deg": 30.0}
-        )
-        expert = gym_soarm.make_expert(env)
-        expert.reset()
-        for _ in range(steps):
-            obs, _, _, _, info = env.step(expert(obs, info))
+        obs = run_to_approach(env, seed, grid_cell, steps)
         return {name: obs[name] for name in constants.CAMERA_NAMES}
     finally:
         env.close()
@@ -72,18 +63,8 @@ def compose(views: dict[str, np.ndarray]) -> np.ndarray:
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--output", type=Path, default=OUTPUT, help=f"default: {OUTPUT}")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--grid-cell", type=int, default=4)
-    parser.add_argument("--steps", type=int, default=APPROACH_STEPS)
-    args = parser.parse_args(argv)
-    sheet = compose(camera_views(args.seed, args.grid_cell, args.steps))
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    iio.imwrite(args.output, sheet, optimize=True)
-    print(
-        f"wrote {args.output} ({sheet.shape[1]}x{sheet.shape[0]}, {args.output.stat().st_size} bytes)"
-    )
+    args = parse_picture_args(__doc__.splitlines()[0], OUTPUT, argv)
+    write_picture(args.output, compose(camera_views(args.seed, args.grid_cell, args.steps)))
 
 
 if __name__ == "__main__":

@@ -12,14 +12,12 @@ to the scene or to the meshes.
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import gymnasium as gym
-import imageio.v3 as iio
 import numpy as np
+from picture_tools import parse_picture_args, run_to_approach, write_picture
 
-import gym_soarm
 from gym_soarm.rendering import CameraRenderer
 
 OUTPUT = Path(__file__).resolve().parents[1] / "docs" / "quality_fast_vs_high.png"
@@ -28,7 +26,6 @@ FRONT_CROP = (slice(40, 280), slice(160, 480))  # 240 x 320 around the arm
 WRIST_SIZE = (240, 320)
 LABEL_WIDTH = 150
 GAP = 4
-APPROACH_STEPS = 60
 LABELS = {
     "fast": ("fast", "simplified meshes", "no shadows", "no reflections", "no multisampling"),
     "provider meshes": ("fast settings", "with the provider", "meshes"),
@@ -53,13 +50,7 @@ def views(
         render_quality=quality,
     )
     try:
-        obs, info = env.reset(
-            seed=seed, options={"cube_grid_position": grid_cell, "cube_rotation_deg": 30.0}
-        )
-        expert = gym_soarm.make_expert(env)
-        expert.reset()
-        for _ in range(steps):
-            obs, _, _, _, info = env.step(expert(obs, info))
+        obs = run_to_approach(env, seed, grid_cell, steps)
         if settings is None:
             front = env.unwrapped.render_camera_image("front_camera", *FRONT_SIZE)
             return [front[FRONT_CROP], obs["wrist_camera"]]
@@ -106,23 +97,13 @@ def compose(rows: dict[str, list[np.ndarray]]) -> np.ndarray:
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--output", type=Path, default=OUTPUT, help=f"default: {OUTPUT}")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--grid-cell", type=int, default=4)
-    parser.add_argument("--steps", type=int, default=APPROACH_STEPS)
-    args = parser.parse_args(argv)
+    args = parse_picture_args(__doc__.splitlines()[0], OUTPUT, argv)
     rows = {
         "fast": views("fast", args.seed, args.grid_cell, args.steps),
         "provider meshes": views("high", args.seed, args.grid_cell, args.steps, settings="fast"),
         "high": views("high", args.seed, args.grid_cell, args.steps),
     }
-    sheet = compose(rows)
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    iio.imwrite(args.output, sheet, optimize=True)
-    print(
-        f"wrote {args.output} ({sheet.shape[1]}x{sheet.shape[0]}, {args.output.stat().st_size} bytes)"
-    )
+    write_picture(args.output, compose(rows))
 
 
 if __name__ == "__main__":

@@ -9,6 +9,17 @@ import pytest
 import gym_soarm
 
 SMALL = {"observation_height": 48, "observation_width": 64}
+# Keys every reset and step info holds.
+INFO_KEYS = {
+    "is_success",
+    "cube_grid_position",
+    "cube_rotation_deg",
+    "cube_pos",
+    "gripper_pos",
+    "reward_terms",
+    "task",
+    "physics_unstable",
+}
 
 
 @pytest.fixture

@@ -19,21 +19,11 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import SMALL
+from conftest import INFO_KEYS, SMALL
 
 from gym_soarm import display, meshes
 
 STATE = {"obs_type": "environment_state_agent_pos"}
-INFO_KEYS = {
-    "is_success",
-    "cube_grid_position",
-    "cube_rotation_deg",
-    "cube_pos",
-    "gripper_pos",
-    "reward_terms",
-    "task",
-    "physics_unstable",
-}
 SUBPROCESS_TIMEOUT_S = 240
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import INFO_KEYS
 
 import gym_soarm
 from gym_soarm import constants
@@ -17,16 +18,6 @@ from gym_soarm.units import UNITS
 
 HEIGHT, WIDTH = 24, 32
 STEPS = 3
-INFO_KEYS = {
-    "is_success",
-    "cube_grid_position",
-    "cube_rotation_deg",
-    "cube_pos",
-    "gripper_pos",
-    "reward_terms",
-    "task",
-    "physics_unstable",
-}
 
 
 def _check_observation(env: gym.Env, obs, cameras: tuple[str, ...], obs_type: str) -> None:
