@@ -22,6 +22,16 @@ INFO_KEYS = {
 }
 
 
+def colour_counts(image: np.ndarray) -> dict[str, int]:
+    """Pixels of the scene's telltale colours in an RGB image."""
+    r, g, b = (image[..., i].astype(int) for i in range(3))
+    return {
+        "blue cube": int(((b > 120) & (b > r + 60) & (b > g + 40)).sum()),
+        "green pad": int(((g > 120) & (g > r + 50) & (g > b + 50)).sum()),
+        "white arm": int(((r > 150) & (abs(r - g) < 20) & (abs(g - b) < 20)).sum()),
+    }
+
+
 @pytest.fixture
 def make_env():
     """Build environments with gym.make and close them after the test."""

@@ -12,6 +12,7 @@ import sys
 import mujoco
 import numpy as np
 import pytest
+from conftest import colour_counts
 
 from gym_soarm import bench, model
 from gym_soarm.rendering import CameraRenderer
@@ -132,15 +133,6 @@ def test_bad_options_are_refused_before_measuring(argv, fragment, capsys, tmp_pa
     assert not (tmp_path / "never.json").exists()
 
 
-def _colour_counts(image: np.ndarray) -> dict[str, int]:
-    r, g, b = (image[..., i].astype(int) for i in range(3))
-    return {
-        "blue cube": int(((b > 120) & (b > r + 60) & (b > g + 40)).sum()),
-        "green pad": int(((g > 120) & (g > r + 50) & (g > b + 50)).sum()),
-        "white arm": int(((r > 150) & (abs(r - g) < 20) & (abs(g - b) < 20)).sum()),
-    }
-
-
 @pytest.mark.parametrize("quality", ["fast", "high"])
 def test_both_qualities_show_the_cube_the_pad_and_the_arm(make_env, quality):
     env = make_env(
@@ -152,11 +144,11 @@ def test_both_qualities_show_the_cube_the_pad_and_the_arm(make_env, quality):
         observation_width=320,
     )
     obs, _ = env.reset(seed=0, options={"cube_grid_position": 4})
-    front = _colour_counts(obs["front_camera"])
+    front = colour_counts(obs["front_camera"])
     assert front["blue cube"] > 10 and front["green pad"] > 10, front
     assert front["white arm"] > 30, front
     assert obs["front_camera"].std() > 20
-    wrist = _colour_counts(obs["wrist_camera"])
+    wrist = colour_counts(obs["wrist_camera"])
     assert wrist["white arm"] > 500, wrist  # the gripper fills part of the wrist view
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import SMALL
+from conftest import SMALL, colour_counts
 
 CONFIGS = {
     "front_only": ["front_camera"],
@@ -78,24 +78,6 @@ def test_front_camera_sees_the_blue_cube_and_green_pad(make_env):
         observation_width=320,
     )
     obs, _ = env.reset(seed=0, options={"cube_grid_position": 4})
-    image = obs["front_camera"].astype(int)
-    r, g, b = image[..., 0], image[..., 1], image[..., 2]
-    assert ((b > 120) & (b > r + 60) & (b > g + 40)).sum() > 10, "no blue cube in view"
-    assert ((g > 120) & (g > r + 50) & (g > b + 50)).sum() > 10, "no green pad in view"
-
-
-@pytest.mark.parametrize("quality", ["fast", "high"])
-def test_both_render_qualities_show_the_scene(make_env, quality):
-    env = make_env(
-        "SoArm-v0",
-        obs_type="pixels",
-        camera_config="front_only",
-        render_quality=quality,
-        observation_height=120,
-        observation_width=160,
-    )
-    obs, _ = env.reset(seed=0, options={"cube_grid_position": 4})
-    image = obs["front_camera"].astype(int)
-    assert image.std() > 20
-    b = image[..., 2]
-    assert ((b > 120) & (b > image[..., 0] + 60)).sum() > 3
+    counts = colour_counts(obs["front_camera"])
+    assert counts["blue cube"] > 10, "no blue cube in view"
+    assert counts["green pad"] > 10, "no green pad in view"
