@@ -24,7 +24,6 @@ converted to the recording's units with :mod:`gym_soarm.units`.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import os
 import sys
@@ -40,7 +39,7 @@ from gym_soarm import constants
 from gym_soarm.dataset import LeRobotDatasetWriter
 from gym_soarm.env import resolve_camera_config
 from gym_soarm.rendering import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
-from gym_soarm.units import FEATURE_NAMES, UNITS, joint_units
+from gym_soarm.units import FEATURE_NAMES, joint_units
 
 TASK_NAMES: tuple[str, ...] = ("LiftCube-v0", "PickAndPlaceCube-v0")
 CAMERA_CONFIG_NONE = "none"
@@ -318,95 +317,7 @@ def record(
     )
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="python -m gym_soarm.record",
-        description="Record scripted-expert demonstrations of gym_soarm as a LeRobotDataset v3.0.",
-    )
-    parser.add_argument("--task", choices=TASK_NAMES, default="LiftCube-v0")
-    parser.add_argument("--episodes", type=int, default=10, help="episodes to keep (default 10)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the first attempt")
-    parser.add_argument(
-        "--repo-id",
-        default="local/soarm",
-        help="dataset name as LeRobot sees it, owner/name (default local/soarm)",
-    )
-    parser.add_argument(
-        "--root",
-        default=None,
-        help="dataset folder (default: $HF_LEROBOT_HOME/<repo-id>, where LeRobot looks)",
-    )
-    parser.add_argument(
-        "--camera-config",
-        default="front_wrist",
-        help=f"one of {', '.join(CAMERA_CONFIG_CHOICES)} or comma-separated camera names; "
-        "'none' records observation.environment_state and no video (default front_wrist)",
-    )
-    parser.add_argument("--size", default="480x640", help="image HEIGHTxWIDTH (default 480x640)")
-    parser.add_argument(
-        "--units", choices=UNITS, default="lerobot", help="joint units (default lerobot)"
-    )
-    parser.add_argument(
-        "--keep",
-        choices=KEEP_CHOICES,
-        default="success",
-        help="'success': drop failed attempts and try again; 'all': keep every attempt",
-    )
-    parser.add_argument(
-        "--dart-noise",
-        type=float,
-        default=0.0,
-        metavar="SIGMA",
-        help="std (rad) of Gaussian noise on the executed action; labels stay clean (default 0)",
-    )
-    parser.add_argument(
-        "--overwrite", action="store_true", help="replace an existing dataset in --root"
-    )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    return parser
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command-line entry point; returns the process exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    camera_config: str | list[str] = args.camera_config
-    if "," in camera_config or camera_config in constants.CAMERA_NAMES:
-        camera_config = [c.strip() for c in camera_config.split(",") if c.strip()]
-    root = Path(args.root) if args.root else default_root(args.repo_id)
-    try:
-        size = parse_size(args.size)
-        summary = record(
-            root,
-            task=args.task,
-            episodes=args.episodes,
-            seed=args.seed,
-            camera_config=camera_config,
-            size=size,
-            units=args.units,
-            keep=args.keep,
-            dart_noise=args.dart_noise,
-            overwrite=args.overwrite,
-            progress=not args.no_progress,
-        )
-    except (ValueError, FileExistsError) as exc:
-        parser.error(str(exc))
-    print(summary.text())
-    if summary.interrupted:
-        return 130
-    if summary.episodes < args.episodes:
-        print(
-            f"only {summary.episodes} of {args.episodes} episodes were kept after "
-            f"{summary.attempts} attempts",
-            file=sys.stderr,
-        )
-        return 1
-    print(
-        f"load it with: LeRobotDataset({args.repo_id!r}, root={str(root)!r}) "
-        f"or --dataset.repo_id={args.repo_id} --dataset.root={root}"
-    )
-    return 0
-
-
 if __name__ == "__main__":
+    from gym_soarm.cli.record import main
+
     sys.exit(main())

@@ -9,12 +9,12 @@ from conftest import SMALL
 
 import gym_soarm
 from gym_soarm import constants
+from gym_soarm.cli.expert import main
 from gym_soarm.expert import (
     TASK_ENV_IDS,
     ExpertConfig,
     evaluate,
     evaluation_resets,
-    main,
     make_expert,
     run_episode,
 )

@@ -14,10 +14,10 @@ import pytest
 from dataset_files import decode_video, psnr, read_dataset
 
 from gym_soarm import units
+from gym_soarm.cli.record import main
 from gym_soarm.record import (
     ENVIRONMENT_STATE_NAMES,
     default_root,
-    main,
     parse_size,
     record,
 )
