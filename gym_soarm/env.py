@@ -362,7 +362,7 @@ class SoArmEnv(gym.Env):
         self._needs_reset = False
         self._step_count = 0
         obs = self._observation()
-        info = self._info(physics_unstable=False)
+        info = self._info()
         if self._viewer is not None:
             self._viewer.show(info)
         return obs, info
@@ -386,7 +386,7 @@ class SoArmEnv(gym.Env):
         terms = self._task.reward_terms(self._physics, success=success)
         reward = float(success) if self.reward_type == "sparse" else self._task.weights.total(terms)
         obs = self._observation()
-        info = self._info(physics_unstable=False, success=success, terms=terms)
+        info = self._info(success=success, terms=terms)
         if self._viewer is not None:
             self._viewer.show(info)
         return obs, reward, success, False, info
@@ -519,16 +519,14 @@ class SoArmEnv(gym.Env):
         return obs
 
     def _info(
-        self,
-        physics_unstable: bool,
-        success: bool | None = None,
-        terms: dict[str, float] | None = None,
+        self, success: bool | None = None, terms: dict[str, float] | None = None
     ) -> dict[str, Any]:
+        """The info of a sound state (a diverged step builds its own from the last one)."""
         physics = self._physics
         if success is None:
             success = self._task.is_success(physics)
         if terms is None:
-            terms = self._task.reward_terms(physics)
+            terms = self._task.reward_terms(physics, success=success)
         start = self._task.start
         self._last_info = {
             "is_success": bool(success),
@@ -538,6 +536,6 @@ class SoArmEnv(gym.Env):
             "gripper_pos": physics.gripper_position(),
             "reward_terms": dict(terms),
             "task": self.task_description,
-            "physics_unstable": physics_unstable,
+            "physics_unstable": False,
         }
         return self._last_info

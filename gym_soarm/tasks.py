@@ -159,16 +159,22 @@ class PickAndPlaceTask(SoArmTask):
     description = "Pick up the blue cube and place it on the green pad."
     weights = PICK_AND_PLACE_WEIGHTS
 
-    def _on_goal(self, physics: SoArmPhysics) -> bool:
+    @staticmethod
+    def _goal_distance(physics: SoArmPhysics) -> float:
+        """Horizontal distance (m) from the cube's centre to the pad's centre."""
         offset = physics.cube_position()[:2] - physics.goal_position()[:2]
-        if float(np.hypot(*offset)) > constants.GOAL_RADIUS_M:
+        return math.hypot(offset[0], offset[1])
+
+    @staticmethod
+    def _on_goal(physics: SoArmPhysics, goal_distance: float) -> bool:
+        if goal_distance > constants.GOAL_RADIUS_M:
             return False
         height = physics.cube_bottom_height() - constants.GOAL_TOP_Z_M
         return abs(height) <= constants.PLACE_HEIGHT_TOL_M
 
     def is_success(self, physics: SoArmPhysics) -> bool:
         return (
-            self._on_goal(physics)
+            self._on_goal(physics, self._goal_distance(physics))
             and not physics.cube_touched_by_jaws()
             and _norm(physics.cube_velocity()) < RESTING_SPEED_M_S
         )
@@ -178,13 +184,12 @@ class PickAndPlaceTask(SoArmTask):
             return dict.fromkeys(self.weights.terms, 1.0)
         # Stages in order: reach, grasp, lift, place. A later stage counts every earlier
         # one as complete, so the reward never falls as the task progresses.
-        if self._on_goal(physics):
+        goal_distance = self._goal_distance(physics)
+        if self._on_goal(physics, goal_distance):
             # On the pad but still held or moving: only the release is missing.
             return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACE_ON_PAD_CREDIT}
         if not physics.cube_grasped():
             return {"reach": self._reach(physics), "grasp": 0.0, "lift": 0.0, "place": 0.0}
-        offset = physics.cube_position()[:2] - physics.goal_position()[:2]
-        goal_distance = math.hypot(offset[0], offset[1])
         # A held cube above the pad counts as lifted, so lowering it onto the pad loses nothing.
         lift = 1.0 if goal_distance <= constants.GOAL_RADIUS_M else self._lift_progress(physics)
         near_goal = tolerance(goal_distance, constants.GOAL_RADIUS_M / 2, PLACE_MARGIN_M)
