@@ -177,6 +177,7 @@ def test_pixels_are_fresh_arrays_every_step(make_env):
         ({"task": "stack"}, "task must be one of"),
     ],
 )
+@pytest.mark.filterwarnings("ignore:.*not in the possible render_modes:UserWarning")
 def test_bad_keyword_raises_value_error_listing_valid_values(kwargs, fragment):
     with pytest.raises(ValueError, match=fragment) as excinfo:
         gym.make("SoArm-v0", **kwargs)
