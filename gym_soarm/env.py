@@ -142,7 +142,7 @@ class SoArmEnv(gym.Env):
         render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
         render_camera: camera returned by ``render()`` in ``rgb_array`` mode.
         render_quality: ``"fast"`` (simplified visual meshes; no shadows, reflections or
-            multisampling) or ``"high"`` (the provider's meshes, shadows, reflections and
+            multisampling) or ``"high"`` (full-detail meshes, shadows, reflections and
             4x multisampling). The physics is the same for both.
         reward_type: ``"dense"`` (weighted named terms in [0, 1]) or ``"sparse"``.
         units: joint units of actions and ``agent_pos``: ``"radians"``, ``"lerobot"``

@@ -2,9 +2,9 @@
 
 The robot (``so101.xml``) and the workspace (``scene.xml``) are separate files; this
 module places the robot's base, supplies the verified meshes and compiles the result.
-There are two visual variants of the same model: ``"high"`` uses the provider's
-meshes as they are, ``"fast"`` the simplified meshes of
-:mod:`gym_soarm.visual_meshes`. The visual meshes carry no mass and never collide, so
+There are two visual variants of the same model, ``"fast"`` and ``"high"``, whose
+meshes are rebuilt from the provider's by :mod:`gym_soarm.visual_meshes` with the
+settings of each render quality. The visual meshes carry no mass and never collide, so
 both variants have the same physics, bit for bit.
 
 Compiling takes most of a second (mostly mesh processing), so it happens once per
@@ -64,7 +64,10 @@ def robot_xml() -> str:
 def scene_assets(visual: str = "fast") -> dict[str, bytes]:
     """Files the scene MJCF refers to: the placed robot and the meshes of ``visual``."""
     _check_variant(visual)
-    mesh_files = meshes.load_meshes() if visual == "high" else visual_meshes.simplified_meshes()
+    return _with_robot(visual_meshes.quality_meshes(visual))
+
+
+def _with_robot(mesh_files: dict[str, bytes]) -> dict[str, bytes]:
     assets = dict(mesh_files)
     assets[ROBOT_FILE] = robot_xml().encode()
     return assets
@@ -73,14 +76,11 @@ def scene_assets(visual: str = "fast") -> dict[str, bytes]:
 def model_cache_name(visual: str) -> str:
     """File name of the cached compiled model of ``visual`` (a digest of its sources)."""
     _check_variant(visual)
-    mesh_key = (
-        "provider meshes" if visual == "high" else f"simplified: {visual_meshes.settings_tag()}"
-    )
     key = cache.digest(
         f"model cache v{MODEL_CACHE_VERSION}",
         f"mujoco {mujoco.__version__}",
         visual,
-        mesh_key,
+        visual_meshes.settings_tag(visual),
         _asset_text(SCENE_FILE),
         robot_xml(),
         *(f"{name} {sha}" for name, sha in sorted(meshes.MESH_SHA256.items())),
@@ -109,6 +109,20 @@ def _compiled_scene(visual: str) -> mujoco.MjModel:
         if cache.write(name, buffer.tobytes()) is not None:
             cache.prune(f"models/scene-{visual}-*.mjb", keep=name)
     return model
+
+
+def provider_mesh_model() -> mujoco.MjModel:
+    """The scene compiled with the provider's meshes as they are (never cached).
+
+    Slow to compile and to render; for comparing the meshes of the render qualities
+    with their source.
+
+    Raises:
+        gym_soarm.meshes.MeshError: a provider mesh is missing or changed.
+    """
+    return mujoco.MjModel.from_xml_string(
+        _asset_text(SCENE_FILE), _with_robot(meshes.load_meshes())
+    )
 
 
 def load_scene_model(visual: str = "fast") -> mujoco.MjModel:

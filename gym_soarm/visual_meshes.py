@@ -1,29 +1,34 @@
-"""Lighter SO-101 visual meshes for ``render_quality="fast"``.
+"""The SO-101 visual meshes of the two render qualities, built from the provider's.
 
 The provider's STL files are CAD exports: 322,564 triangles in all (about 400,000 per
 frame once the servo mesh is repeated), most of them far smaller than a pixel. A
-software rasteriser spends most of a frame on them. For the ``fast`` quality each mesh
-is rebuilt once:
+software rasteriser spends most of a frame on them, so neither quality draws them as
+they are. Each mesh is rebuilt once per machine, with the settings of its quality
+(:data:`MESH_SETTINGS`):
 
-1. vertices that share a cell of a :data:`WELD_CELL_M` grid (1.5 mm) are merged into
-   one (vertex clustering), which removes the sub-millimetre tessellation;
-2. quadric edge-collapse decimation (the ``fast-simplification`` package) removes
-   :data:`DECIMATION_REDUCTION` (30 %) of the triangles that remain.
+1. vertices that share a cell of a grid are merged into one (vertex clustering), which
+   removes tessellation finer than the cell;
+2. for ``fast`` only, quadric edge-collapse decimation (the ``fast-simplification``
+   package) then removes a share of the triangles that remain.
 
-About 7 % of the triangles survive (21,500), each part keeps its extent to within
-about half a millimetre; frames render several times faster and differ by a few grey levels
-(``docs/quality_fast_vs_high.png`` shows both). These settings came from measuring
-render time and the difference to the provider's meshes at the wrist camera, which
-sees the gripper closest. Physics never sees these meshes: the visual geoms have no
-mass and no collisions.
+``high`` merges at 0.3 mm, less than a pixel of the wrist camera (the closest view of
+the arm) at 640x480: 126,000 triangles are left, frames render about twice as fast and
+differ from the provider's meshes by a fraction of a grey level, at edges.
+``fast`` merges at 1.5 mm and removes 30 % of what is left: 21,500 triangles, each part
+keeps its extent to within about half a millimetre, and frames differ by a few grey
+levels (``docs/quality_fast_vs_high.png`` shows both). These settings came from
+measuring render time and the difference to the provider's meshes at the front and
+wrist cameras. Physics never sees these meshes: the visual geoms have no mass and no
+collisions.
 
 The results are cached in the user cache directory (see :mod:`gym_soarm.cache`),
-keyed by each source file's SHA-256 and the settings above, so the work is done once
-per machine.
+keyed by each source file's SHA-256 and the settings, so the work is done once per
+machine.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import importlib.metadata
 import logging
@@ -34,8 +39,19 @@ from gym_soarm import cache, meshes
 
 logger = logging.getLogger(__name__)
 
-WELD_CELL_M = 0.0015
-DECIMATION_REDUCTION = 0.3
+
+@dataclasses.dataclass(frozen=True)
+class MeshSettings:
+    """How one render quality rebuilds the provider's meshes."""
+
+    weld_cell_m: float  # vertices sharing a cell of this grid become one
+    decimation: float  # share of the welded triangles that decimation removes (0: none)
+
+
+MESH_SETTINGS = {
+    "fast": MeshSettings(weld_cell_m=0.0015, decimation=0.3),
+    "high": MeshSettings(weld_cell_m=0.0003, decimation=0.0),
+}
 # Bump when the algorithm changes, so cached meshes of the old one are not reused.
 ALGORITHM_VERSION = 3
 
@@ -128,46 +144,56 @@ def weld_vertices(
     return merged[used], renumber[tris]
 
 
-def simplify_stl(data: bytes) -> bytes:
-    """The simplified version of one STL file (welded, then decimated)."""
-    import fast_simplification
+def _mesh_settings(quality: str) -> MeshSettings:
+    if quality not in MESH_SETTINGS:
+        raise ValueError(f"quality must be one of {tuple(MESH_SETTINGS)}; got {quality!r}.")
+    return MESH_SETTINGS[quality]
 
+
+def simplify_stl(data: bytes, quality: str = "fast") -> bytes:
+    """One STL file rebuilt with the settings of ``quality`` (welded, maybe decimated)."""
+    settings = _mesh_settings(quality)
     corners = stl_corners(data).astype(np.float64)
     # Welding merges repeated corners along with near ones: no exact de-duplication first.
     triangles = np.arange(len(corners), dtype=np.int64).reshape(-1, 3)
-    vertices, triangles = weld_vertices(corners, triangles, WELD_CELL_M)
-    vertices, triangles = fast_simplification.simplify(
-        vertices, triangles.astype(np.int32), target_reduction=DECIMATION_REDUCTION
-    )
+    vertices, triangles = weld_vertices(corners, triangles, settings.weld_cell_m)
+    if settings.decimation > 0:
+        import fast_simplification
+
+        vertices, triangles = fast_simplification.simplify(
+            vertices, triangles.astype(np.int32), target_reduction=settings.decimation
+        )
     return write_binary_stl(vertices, triangles)
 
 
-def settings_tag() -> str:
-    """Everything besides the source bytes that the simplified meshes depend on."""
-    try:
-        library = importlib.metadata.version("fast-simplification")
-    except importlib.metadata.PackageNotFoundError:
-        library = "missing"
-    return (
-        f"v{ALGORITHM_VERSION} weld={WELD_CELL_M!r} reduction={DECIMATION_REDUCTION!r} "
-        f"fast-simplification={library}"
-    )
+def settings_tag(quality: str = "fast") -> str:
+    """Everything besides the source bytes that the meshes of ``quality`` depend on."""
+    settings = _mesh_settings(quality)
+    tag = f"v{ALGORITHM_VERSION} {quality} weld={settings.weld_cell_m!r}"
+    if settings.decimation > 0:
+        try:
+            library = importlib.metadata.version("fast-simplification")
+        except importlib.metadata.PackageNotFoundError:
+            library = "missing"
+        tag += f" reduction={settings.decimation!r} fast-simplification={library}"
+    return tag
 
 
-@functools.lru_cache(maxsize=1)
-def simplified_meshes() -> dict[str, bytes]:
-    """``{file name: STL bytes}`` of every SO-101 mesh, simplified (cached on disk).
+@functools.lru_cache(maxsize=len(MESH_SETTINGS))
+def quality_meshes(quality: str = "fast") -> dict[str, bytes]:
+    """``{file name: STL bytes}`` of every SO-101 mesh for ``quality`` (cached on disk).
 
     Raises:
+        ValueError: ``quality`` is not one of :data:`MESH_SETTINGS`.
         gym_soarm.meshes.MeshError: a provider mesh is missing or changed.
     """
+    tag = settings_tag(quality)
     sources = meshes.load_meshes()  # checks every SHA-256
-    tag = settings_tag()
     result: dict[str, bytes] = {}
     for name in sources:
         key = cache.digest(meshes.MESH_SHA256[name], tag)[:24]
         stem = name.removesuffix(".stl")
-        cache_name = f"meshes/{stem}-{key}.stl"
+        cache_name = f"meshes/{quality}/{stem}-{key}.stl"
         data = cache.read(cache_name)
         if data is not None:
             try:
@@ -177,8 +203,8 @@ def simplified_meshes() -> dict[str, bytes]:
                 logger.info("discarding the damaged cached mesh %s (%s)", cache_name, exc)
                 data = None
         if data is None:
-            data = simplify_stl(sources[name])
+            data = simplify_stl(sources[name], quality)
             if cache.write(cache_name, data) is not None:
-                cache.prune(f"meshes/{stem}-*.stl", keep=cache_name)
+                cache.prune(f"meshes/{quality}/{stem}-*.stl", keep=cache_name)
         result[name] = data
     return result

@@ -5,7 +5,7 @@
 Runs the scripted expert until the open jaws are over the cube (the same state in both
 qualities: the physics does not depend on them), then renders the arm through the
 front camera (a crop of a 640x480 frame) and the wrist camera in ``fast`` (top row),
-with the ``fast`` settings but the provider's meshes (middle row: what the mesh
+with the ``fast`` settings but the ``high`` meshes (middle row: what the mesh
 simplification alone changes) and in ``high`` (bottom row). Rerun it after a change
 to the scene or to the meshes.
 """
@@ -28,8 +28,8 @@ LABEL_WIDTH = 150
 GAP = 4
 LABELS = {
     "fast": ("fast", "simplified meshes", "no shadows", "no reflections", "no multisampling"),
-    "provider meshes": ("fast settings", "with the provider", "meshes"),
-    "high": ("high", "provider meshes", "shadows", "reflections", "4x multisampling"),
+    "high meshes": ("fast settings", "with the high", "meshes"),
+    "high": ("high", "full-detail meshes", "shadows", "reflections", "4x multisampling"),
 }
 
 
@@ -100,7 +100,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parse_picture_args(__doc__.splitlines()[0], OUTPUT, argv)
     rows = {
         "fast": views("fast", args.seed, args.grid_cell, args.steps),
-        "provider meshes": views("high", args.seed, args.grid_cell, args.steps, settings="fast"),
+        "high meshes": views("high", args.seed, args.grid_cell, args.steps, settings="fast"),
         "high": views("high", args.seed, args.grid_cell, args.steps),
     }
     write_picture(args.output, compose(rows))

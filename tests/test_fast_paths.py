@@ -118,19 +118,31 @@ def test_huge_finite_actions_are_clipped_and_the_caller_array_is_untouched(state
     np.testing.assert_allclose(state_env.unwrapped.physics.joint_targets(), expected, atol=1e-6)
 
 
-def test_simplified_meshes_keep_the_extent_of_each_part():
+@pytest.mark.parametrize(
+    "quality, kept_at_most, extent_m", [("fast", 0.1, 1e-3), ("high", 0.5, 3e-4)]
+)
+def test_quality_meshes_keep_the_extent_of_each_part(quality, kept_at_most, extent_m):
     sources = meshes.load_meshes()
-    simplified = visual_meshes.simplified_meshes()
-    assert set(simplified) == set(sources)
+    rebuilt = visual_meshes.quality_meshes(quality)
+    assert set(rebuilt) == set(sources)
+    kept = 0
     for name, data in sources.items():
-        v_src, t_src = visual_meshes.parse_binary_stl(data)
-        v_new, t_new = visual_meshes.parse_binary_stl(simplified[name])
-        assert 0 < len(t_new) < 0.5 * len(t_src), name
+        v_src, _ = visual_meshes.parse_binary_stl(data)
+        v_new, t_new = visual_meshes.parse_binary_stl(rebuilt[name])
+        assert len(t_new) > 0, name
+        kept += len(t_new)
         for new, src in (
             (v_new.min(axis=0), v_src.min(axis=0)),
             (v_new.max(axis=0), v_src.max(axis=0)),
         ):
-            np.testing.assert_allclose(new, src, atol=1e-3, err_msg=name)
+            np.testing.assert_allclose(new, src, atol=extent_m, err_msg=name)
+    total = sum(visual_meshes.stl_triangle_count(data) for data in sources.values())
+    assert kept < kept_at_most * total
+
+
+def test_unknown_mesh_quality_is_refused():
+    with pytest.raises(ValueError, match="quality must be one of"):
+        visual_meshes.quality_meshes("ultra")
 
 
 def test_stl_round_trip_and_rejects_non_stl_bytes():
@@ -192,7 +204,7 @@ def test_compiled_model_is_cached_reused_and_rebuilt_when_damaged(tmp_path):
     cached = tmp_path / first["name"]
     assert cached.is_file()
     assert not stale.exists()  # superseded files are pruned
-    assert len(list((tmp_path / "meshes").glob("*.stl"))) == len(meshes.MESH_SHA256)
+    assert len(list((tmp_path / "meshes" / "fast").glob("*.stl"))) == len(meshes.MESH_SHA256)
     stamp = cached.stat().st_mtime_ns
     # The cached binary gives the same model as compiling the XML.
     compiled = model._compile("fast")
