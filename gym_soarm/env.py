@@ -20,7 +20,7 @@ from gym_soarm import constants
 from gym_soarm.physics import SoArmPhysics
 from gym_soarm.rendering import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE, RENDER_QUALITIES, CameraRenderer
 from gym_soarm.tasks import TASKS, SoArmTask
-from gym_soarm.units import UNITS, joint_units
+from gym_soarm.units import UNITS, JointUnits, check_wrist_roll_offset, joint_units
 
 OBS_TYPES = ("pixels", "pixels_agent_pos", "environment_state_agent_pos")
 REWARD_TYPES = ("dense", "sparse")
@@ -147,6 +147,9 @@ class SoArmEnv(gym.Env):
         reward_type: ``"dense"`` (weighted named terms in [0, 1]) or ``"sparse"``.
         units: joint units of actions and ``agent_pos``: ``"radians"``, ``"lerobot"``
             or ``"lerobot_range"``.
+        wrist_roll_offset_deg: with LeRobot units, the real arm's wrist_roll reading
+            (degrees, -180 to 180) when the model's wrist_roll is at 0 rad; wrist_roll
+            values are shifted by it and wrapped to a turn (see :mod:`gym_soarm.units`).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": constants.RENDER_FPS}
@@ -163,6 +166,7 @@ class SoArmEnv(gym.Env):
         render_quality: str = "fast",
         reward_type: str = "dense",
         units: str = "radians",
+        wrist_roll_offset_deg: float = 0.0,
     ) -> None:
         # Validate every argument before building anything.
         _check_choice("task", task, tuple(TASKS))
@@ -175,6 +179,7 @@ class SoArmEnv(gym.Env):
         _check_choice("render_quality", render_quality, RENDER_QUALITIES)
         _check_choice("reward_type", reward_type, REWARD_TYPES)
         _check_choice("units", units, UNITS)
+        wrist_roll_offset_deg = check_wrist_roll_offset(units, wrist_roll_offset_deg)
 
         self.render_mode = render_mode
         self.obs_type = obs_type
@@ -186,7 +191,8 @@ class SoArmEnv(gym.Env):
         self.render_quality = render_quality
         self.reward_type = reward_type
         self.units = units
-        self._units = joint_units(units)
+        self.wrist_roll_offset_deg = wrist_roll_offset_deg
+        self._units = joint_units(units, wrist_roll_offset_deg)
 
         # The render quality picks the visual meshes; the physics is the same for both.
         self._physics = SoArmPhysics.from_scene(render_quality)
@@ -207,10 +213,9 @@ class SoArmEnv(gym.Env):
 
         # Actions are clipped in radians; the space shows the bounds in the chosen units.
         self._action_low, self._action_high = self._physics.control_range()
+        action_low, action_high = self._units.bounds(self._action_low, self._action_high)
         self.action_space = spaces.Box(
-            self._units.from_radians(self._action_low).astype(np.float32),
-            self._units.from_radians(self._action_high).astype(np.float32),
-            dtype=np.float32,
+            action_low.astype(np.float32), action_high.astype(np.float32), dtype=np.float32
         )
         self.observation_space = self._make_observation_space()
 
@@ -227,8 +232,7 @@ class SoArmEnv(gym.Env):
         # Joint limits never come near +-pi rad (wrist_roll's range is the widest).
         n_joints = len(constants.JOINT_NAMES)
         agent_pos = spaces.Box(
-            self._units.from_radians(np.full(n_joints, -np.pi)),
-            self._units.from_radians(np.full(n_joints, np.pi)),
+            *self._units.bounds(np.full(n_joints, -np.pi), np.full(n_joints, np.pi)),
             dtype=np.float64,
         )
         # OrderedDict keeps our key order; Gymnasium sorts the keys of a plain dict.
@@ -245,6 +249,11 @@ class SoArmEnv(gym.Env):
     def physics(self) -> SoArmPhysics:
         """The dm_control physics of this environment (for experts, tests and tools)."""
         return self._physics
+
+    @property
+    def joint_units(self) -> JointUnits:
+        """The conversion between radians and the units of actions and ``agent_pos``."""
+        return self._units
 
     @property
     def task_logic(self) -> SoArmTask:

@@ -39,7 +39,7 @@ import numpy as np
 
 from gym_soarm import constants
 from gym_soarm.physics import SoArmPhysics
-from gym_soarm.units import RADIANS, joint_units
+from gym_soarm.units import RADIANS, JointUnits, joint_units
 
 _QUARTER_TURN_RAD = math.pi / 2
 # Keeps the null-space projector of the position Jacobian finite at a singular pose
@@ -318,7 +318,8 @@ class ScriptedExpert:
     def __init__(self, env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> None:
         self.env = env.unwrapped
         self.config = config
-        self._units = joint_units(getattr(self.env, "units", RADIANS))
+        conversion = getattr(self.env, "joint_units", None)
+        self._units = conversion if isinstance(conversion, JointUnits) else joint_units(RADIANS)
         physics: SoArmPhysics = self.env.physics
         self._kinematics = ArmKinematics(physics.model.ptr)
         self._n_arm = len(constants.ARM_JOINT_NAMES)

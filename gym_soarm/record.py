@@ -170,6 +170,7 @@ def record(
     camera_config: str | Sequence[str] = "front_wrist",
     size: tuple[int, int] = (480, 640),
     units: str = "lerobot",
+    wrist_roll_offset_deg: float = 0.0,
     keep: str = "success",
     dart_noise: float = 0.0,
     overwrite: bool = False,
@@ -190,6 +191,8 @@ def record(
             ``"none"`` (no video; ``observation.environment_state`` is recorded instead).
         size: image (height, width), both even.
         units: joint units of states and actions, one of :data:`gym_soarm.units.UNITS`.
+        wrist_roll_offset_deg: with LeRobot units, the real arm's wrist_roll reading
+            (degrees) when the model's wrist_roll is at 0 rad (see :mod:`gym_soarm.units`).
         keep: ``"success"`` keeps only successful episodes (failed attempts are dropped
             and another attempt is made); ``"all"`` keeps every attempt.
         dart_noise: standard deviation (rad) of the Gaussian noise added to the executed
@@ -200,6 +203,7 @@ def record(
 
     Raises:
         ValueError: a bad argument; nothing is written then.
+        TypeError: ``wrist_roll_offset_deg`` is not a number; nothing is written then.
     """
     from gym_soarm.expert import make_expert
 
@@ -207,7 +211,7 @@ def record(
         raise ValueError(f"task must be one of {', '.join(TASK_NAMES)}; got {task!r}.")
     episodes = _check_int("episodes", episodes, 1)
     seed = _check_int("seed", seed, 0)
-    conversion = joint_units(units)
+    conversion = joint_units(units, wrist_roll_offset_deg)
     if keep not in KEEP_CHOICES:
         raise ValueError(f"keep must be one of {', '.join(KEEP_CHOICES)}; got {keep!r}.")
     if isinstance(dart_noise, bool) or not isinstance(dart_noise, (int, float)):
@@ -221,7 +225,10 @@ def record(
         max_attempts = 3 * episodes + 10
     max_attempts = _check_int("max_attempts", max_attempts, episodes)
 
-    env_kwargs: dict[str, Any] = {"units": units}
+    env_kwargs: dict[str, Any] = {
+        "units": units,
+        "wrist_roll_offset_deg": wrist_roll_offset_deg,
+    }
     if state_only:
         env_kwargs["obs_type"] = "environment_state_agent_pos"
     else:

@@ -13,6 +13,13 @@ joint positions as ``<motor>.pos`` values in one of two calibrated conventions:
 Every conversion is affine per joint (``value = scale * rad + offset``); this module
 holds those figures once and the environment, the recorder and the dataset use them.
 
+``wrist_roll`` is calibrated over a full turn, so its zero on a real arm is wherever the
+wrist was held during calibration, and a leader arm's zero need not be the model's. A
+``wrist_roll_offset_deg`` says what the arm reads when the model's wrist_roll is at 0
+rad: LeRobot values are then ``wrap(degrees + offset)``, wrapped to -180..180 degrees
+(-100..100 in ``"lerobot_range"``), and values coming back map to the model's angle
+nearest to the middle of its range.
+
 =============  ===================  ====================  =============================
 joint          sim range (rad)      ``"lerobot"``         ``"lerobot_range"``
 =============  ===================  ====================  =============================
@@ -56,30 +63,79 @@ _FULL_TURN_JOINTS = ("wrist_roll",)
 _RAD_TO_DEG = 180.0 / math.pi
 
 
+_WRIST_ROLL = constants.JOINT_NAMES.index("wrist_roll")
+_WRIST_ROLL_MIDDLE_RAD = (SERVO_RANGE_LOW_RAD[_WRIST_ROLL] + SERVO_RANGE_HIGH_RAD[_WRIST_ROLL]) / 2
+
+
+def _wrap(angle_rad: np.ndarray) -> np.ndarray:
+    """Angles wrapped into [-pi, pi)."""
+    return (angle_rad + math.pi) % (2 * math.pi) - math.pi
+
+
 @dataclass(frozen=True)
 class JointUnits:
-    """The affine map ``value = scale * radians + offset`` of the six joints in one unit.
+    """The map between radians and one unit of the six joints.
+
+    Each joint is affine, ``value = scale * radians + offset``, except ``wrist_roll``
+    when ``wrist_roll_offset_rad`` is not zero: it is then shifted and wrapped, see the
+    module docstring.
 
     Attributes:
         name: one of :data:`UNITS`.
         scale: per-joint factor, shape (6,), all positive.
         offset: per-joint offset, shape (6,).
+        wrist_roll_offset_rad: the real arm's wrist_roll reading, in radians, when the
+            model's wrist_roll is at 0 rad.
     """
 
     name: str
     scale: np.ndarray
     offset: np.ndarray
+    wrist_roll_offset_rad: float = 0.0
 
     def from_radians(self, radians: np.ndarray | Sequence[float]) -> np.ndarray:
         """Convert joint positions from radians to these units (float64, same shape).
 
         The last axis must hold the six joints; leading axes (e.g. time) are kept.
         """
-        return np.asarray(radians, dtype=np.float64) * self.scale + self.offset
+        values = np.asarray(radians, dtype=np.float64) * self.scale + self.offset
+        if self.wrist_roll_offset_rad:
+            roll = np.asarray(radians, dtype=np.float64)[..., _WRIST_ROLL]
+            values[..., _WRIST_ROLL] = (
+                _wrap(roll + self.wrist_roll_offset_rad) * self.scale[_WRIST_ROLL]
+            )
+        return values
 
     def to_radians(self, values: np.ndarray | Sequence[float]) -> np.ndarray:
         """Convert joint positions from these units to radians (float64, same shape)."""
-        return (np.asarray(values, dtype=np.float64) - self.offset) / self.scale
+        radians = (np.asarray(values, dtype=np.float64) - self.offset) / self.scale
+        if self.wrist_roll_offset_rad:
+            # Of the angles equal modulo a turn, the one nearest the middle of the range.
+            roll = radians[..., _WRIST_ROLL] - self.wrist_roll_offset_rad
+            radians[..., _WRIST_ROLL] = _WRIST_ROLL_MIDDLE_RAD + _wrap(
+                roll - _WRIST_ROLL_MIDDLE_RAD
+            )
+        return radians
+
+    def bounds(
+        self, low_rad: np.ndarray | Sequence[float], high_rad: np.ndarray | Sequence[float]
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Per-joint bounds, in these units, of the values of joints in [low_rad, high_rad].
+
+        With a wrist_roll offset whose shifted interval crosses +-180 degrees, the
+        wrist_roll bounds are the whole turn.
+        """
+        low = np.asarray(low_rad, dtype=np.float64) * self.scale + self.offset
+        high = np.asarray(high_rad, dtype=np.float64) * self.scale + self.offset
+        if self.wrist_roll_offset_rad:
+            shifted = (
+                low_rad[_WRIST_ROLL] + self.wrist_roll_offset_rad,
+                high_rad[_WRIST_ROLL] + self.wrist_roll_offset_rad,
+            )
+            if not (-math.pi <= shifted[0] and shifted[1] <= math.pi):
+                shifted = (-math.pi, math.pi)
+            low[_WRIST_ROLL], high[_WRIST_ROLL] = np.multiply(shifted, self.scale[_WRIST_ROLL])
+        return low, high
 
 
 def _gripper_percent(low: float, high: float) -> tuple[float, float]:
@@ -111,17 +167,56 @@ def _build(name: str) -> JointUnits:
 _TABLE: dict[str, JointUnits] = {name: _build(name) for name in UNITS}
 
 
-def joint_units(units: str) -> JointUnits:
-    """The conversion of ``units`` (one of :data:`UNITS`).
+def check_wrist_roll_offset(units: str, wrist_roll_offset_deg: object) -> float:
+    """``wrist_roll_offset_deg`` as a float, once it is valid for ``units``.
 
     Raises:
-        ValueError: ``units`` is not one of :data:`UNITS`.
+        TypeError: the offset is not a real number.
+        ValueError: the offset is outside -180..180 or not finite, or it is not 0 while
+            ``units`` is ``"radians"``.
+    """
+    offset = wrist_roll_offset_deg
+    if isinstance(offset, bool) or not isinstance(offset, (int, float, np.integer, np.floating)):
+        raise TypeError(
+            f"wrist_roll_offset_deg must be a real number of degrees; got {offset!r} "
+            f"({type(offset).__name__}). Pass e.g. wrist_roll_offset_deg=-90.0."
+        )
+    offset = float(offset)
+    if not -180.0 <= offset <= 180.0:  # also refuses NaN
+        raise ValueError(
+            f"wrist_roll_offset_deg must be between -180 and 180 degrees; got {offset!r}. "
+            "Give the real arm's wrist_roll reading when the model's wrist_roll is at 0 rad."
+        )
+    if offset and units == RADIANS:
+        raise ValueError(
+            f"wrist_roll_offset_deg applies to LeRobot's units; got {offset!r} with "
+            f"units='radians'. Use units='lerobot' or 'lerobot_range', or leave it at 0."
+        )
+    return offset
+
+
+def joint_units(units: str, wrist_roll_offset_deg: float = 0.0) -> JointUnits:
+    """The conversion of ``units`` (one of :data:`UNITS`).
+
+    Args:
+        units: one of :data:`UNITS`.
+        wrist_roll_offset_deg: the real arm's wrist_roll reading (degrees, -180..180)
+            when the model's wrist_roll is at 0 rad; LeRobot units only.
+
+    Raises:
+        ValueError: ``units`` is not one of :data:`UNITS`, or the offset is invalid
+            (see :func:`check_wrist_roll_offset`).
+        TypeError: the offset is not a real number.
     """
     if not isinstance(units, str) or units not in _TABLE:
         raise ValueError(
             f"units must be one of {', '.join(repr(u) for u in UNITS)}; got {units!r}."
         )
-    return _TABLE[units]
+    offset = check_wrist_roll_offset(units, wrist_roll_offset_deg)
+    if not offset:
+        return _TABLE[units]
+    table = _TABLE[units]
+    return JointUnits(units, table.scale, table.offset, math.radians(offset))
 
 
 def radians_to_units(radians: np.ndarray | Sequence[float], units: str) -> np.ndarray:

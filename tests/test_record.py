@@ -117,6 +117,25 @@ def test_units_of_the_recording(tmp_path, lift_state):
         )
 
 
+def test_wrist_roll_offset_of_the_recording(tmp_path, lift_state):
+    _, _, plain = lift_state
+    record(
+        tmp_path / "offset",
+        task="LiftCube-v0",
+        episodes=1,
+        seed=0,
+        camera_config="none",
+        wrist_roll_offset_deg=-90.0,
+    )
+    shifted = read_dataset(tmp_path / "offset")
+    n = shifted.info["total_frames"]
+    roll = units.FEATURE_NAMES.index("wrist_roll.pos")
+    for key in ("observation.state", "action"):
+        expected = plain.data[key][:n].astype(np.float64)
+        expected[:, roll] = (expected[:, roll] - 90.0 + 180.0) % 360.0 - 180.0
+        np.testing.assert_allclose(shifted.data[key], expected, atol=1e-3)
+
+
 def test_dart_noise_perturbs_the_motion_but_not_the_labels(tmp_path, lift_state):
     _, _, clean = lift_state
     sigma = 0.05
@@ -218,6 +237,7 @@ def test_camera_recording(tmp_path):
         ({"task": "Lift"}, "task must be one of"),
         ({"episodes": 0}, "episodes must be an int >= 1"),
         ({"units": "deg"}, "units must be one of"),
+        ({"units": "radians", "wrist_roll_offset_deg": 90}, "applies to LeRobot's units"),
         ({"keep": "failed"}, "keep must be one of"),
         ({"dart_noise": -0.1}, "dart_noise must be"),
         ({"size": (47, 64)}, "even"),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import gymnasium as gym
 import numpy as np
@@ -202,3 +203,137 @@ def test_env_rejects_bad_units(bad):
         ValueError, match=r"units must be one of 'radians', 'lerobot', 'lerobot_range'"
     ):
         gym.make("SoArm-v0", obs_type="environment_state_agent_pos", units=bad)
+
+
+# --- wrist_roll offset -----------------------------------------------------------------------
+def _wrap_deg(degrees: np.ndarray) -> np.ndarray:
+    return (np.asarray(degrees) + 180.0) % 360.0 - 180.0
+
+
+@pytest.mark.parametrize("offset", [-90.0, 10.0, 120.0, -180.0, 180.0])
+@pytest.mark.parametrize("name", ["lerobot", "lerobot_range"])
+def test_wrist_roll_offset_shifts_wraps_and_round_trips(name, offset):
+    conv = units.joint_units(name, offset)
+    plain = units.joint_units(name)
+    rad = _random_radians(500, seed=3)
+    values = conv.from_radians(rad)
+    # Every other joint is untouched, bit for bit.
+    others = [i for i in range(6) if i != WRIST_ROLL]
+    np.testing.assert_array_equal(values[:, others], plain.from_radians(rad)[:, others])
+    # wrist_roll reads the shifted angle, wrapped to half a turn either way.
+    per_degree = 1.0 if name == "lerobot" else 100.0 / 180.0
+    expected = _wrap_deg(np.degrees(rad[:, WRIST_ROLL]) + offset) * per_degree
+    np.testing.assert_allclose(values[:, WRIST_ROLL], expected, atol=1e-9)
+    assert np.all(np.abs(values[:, WRIST_ROLL]) <= 180.0 * per_degree)
+    np.testing.assert_allclose(conv.to_radians(values), rad, atol=1e-12)
+    # The model at 0 rad reads the offset (wrapped).
+    assert conv.from_radians(np.zeros(6))[WRIST_ROLL] == pytest.approx(
+        _wrap_deg(offset) * per_degree, abs=1e-9
+    )
+
+
+def test_zero_offset_is_the_plain_conversion():
+    for name in units.UNITS:
+        assert units.joint_units(name, 0.0) is units.joint_units(name)
+
+
+def test_wrist_roll_values_outside_the_range_go_to_the_nearest_end():
+    conv = units.joint_units("lerobot", -90.0)
+    low_deg, high_deg = np.degrees(LOW[WRIST_ROLL]), np.degrees(HIGH[WRIST_ROLL])
+    # The model's range shifted by -90 degrees reads high_deg - 90 at its upper end and
+    # wraps at -180; readings between the two ends are out of the servo's reach.
+    gap = (high_deg - 90.0, low_deg - 90.0 + 360.0)
+    for reading, end in (
+        (gap[0] + 5.0, HIGH[WRIST_ROLL]),
+        (gap[1] - 5.0, LOW[WRIST_ROLL]),
+    ):
+        values = np.zeros(6)
+        values[WRIST_ROLL] = reading
+        rad = np.clip(conv.to_radians(values), LOW, HIGH)
+        assert rad[WRIST_ROLL] == pytest.approx(end)
+
+
+@pytest.mark.parametrize(
+    ("offset", "wraps"), [(10.0, False), (-20.0, False), (-90.0, True), (45.0, True)]
+)
+def test_env_spaces_with_a_wrist_roll_offset(offset, wraps):
+    # The servo range shifted by the offset, or the whole turn when that crosses +-180.
+    if wraps:
+        low, high = -180.0, 180.0
+    else:
+        low, high = np.degrees([LOW[WRIST_ROLL], HIGH[WRIST_ROLL]]) + offset
+    env = gym.make(
+        "gym_soarm/LiftCube-v0",
+        obs_type="environment_state_agent_pos",
+        units="lerobot",
+        wrist_roll_offset_deg=offset,
+    )
+    try:
+        assert env.unwrapped.wrist_roll_offset_deg == offset
+        assert env.action_space.low[WRIST_ROLL] == pytest.approx(low, abs=1e-4)
+        assert env.action_space.high[WRIST_ROLL] == pytest.approx(high, abs=1e-4)
+        agent_pos = env.observation_space["agent_pos"]
+        assert (agent_pos.low[WRIST_ROLL], agent_pos.high[WRIST_ROLL]) == (-180.0, 180.0)
+        obs, _ = env.reset(seed=0)
+        assert obs["agent_pos"][WRIST_ROLL] == pytest.approx(_wrap_deg(offset))  # home: 0 rad
+        # A reading moves the model's wrist_roll to the reading minus the offset.
+        reading = _wrap_deg(offset + 40.0)
+        action = np.array([0.0, 0.0, 0.0, 0.0, reading, 50.0])
+        for _ in range(60):
+            obs, *_ = env.step(action)
+        physics = env.unwrapped.physics
+        assert physics.joint_targets()[WRIST_ROLL] == pytest.approx(math.radians(40.0))
+        assert physics.joint_angles()[WRIST_ROLL] == pytest.approx(math.radians(40.0), abs=0.02)
+        assert obs["agent_pos"][WRIST_ROLL] == pytest.approx(reading, abs=1.0)
+        assert env.observation_space.contains(obs)
+    finally:
+        env.close()
+
+
+def test_expert_speaks_the_offset_units():
+    from gym_soarm import make_expert
+
+    env = gym.make(
+        "gym_soarm/LiftCube-v0",
+        obs_type="environment_state_agent_pos",
+        units="lerobot",
+        wrist_roll_offset_deg=-90.0,
+    )
+    try:
+        expert = make_expert(env)
+        obs, info = env.reset(seed=1, options={"cube_grid_position": 2, "cube_rotation_deg": 45})
+        expert.reset()
+        for _ in range(250):
+            obs, _, terminated, truncated, info = env.step(expert(obs, info))
+            if terminated or truncated:
+                break
+        assert info["is_success"]
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize(
+    ("units_name", "offset", "error", "fragment"),
+    [
+        (
+            "radians",
+            -90.0,
+            ValueError,
+            "applies to LeRobot's units; got -90.0 with units='radians'",
+        ),
+        ("lerobot", 270.0, ValueError, "between -180 and 180 degrees; got 270.0"),
+        ("lerobot", float("nan"), ValueError, "between -180 and 180 degrees; got nan"),
+        ("lerobot", "-90", TypeError, "must be a real number of degrees; got '-90' (str)"),
+        ("lerobot", True, TypeError, "must be a real number of degrees; got True (bool)"),
+    ],
+)
+def test_bad_wrist_roll_offsets_are_refused(units_name, offset, error, fragment):
+    with pytest.raises(error, match=re.escape(fragment)):
+        units.joint_units(units_name, offset)
+    with pytest.raises(error, match=re.escape(fragment)):
+        gym.make(
+            "SoArm-v0",
+            obs_type="environment_state_agent_pos",
+            units=units_name,
+            wrist_roll_offset_deg=offset,
+        )

@@ -183,9 +183,25 @@ def test_env_config_features_match_what_the_env_gives(obs_type, camera_config, e
         vector.close()
 
 
+def test_env_config_forwards_the_wrist_roll_offset():
+    config = SoArmEnvConfig(
+        task="LiftCube-v0", obs_type="environment_state_agent_pos", wrist_roll_offset_deg=-90
+    )
+    assert config.gym_kwargs["wrist_roll_offset_deg"] == -90.0
+    vector = make_env(config, n_envs=1)["soarm"][0]
+    try:
+        obs, _ = vector.reset(seed=0)
+        roll = units.FEATURE_NAMES.index("wrist_roll.pos")
+        assert obs["agent_pos"][0, roll] == pytest.approx(-90.0)  # the model's 0 rad
+    finally:
+        vector.close()
+
+
 def test_bad_env_config_values():
     with pytest.raises(ValueError, match="units must be one of"):
         SoArmEnvConfig(units="deg")
+    with pytest.raises(ValueError, match="applies to LeRobot's units"):
+        SoArmEnvConfig(units="radians", wrist_roll_offset_deg=90.0)
     with pytest.raises(ValueError, match="obs_type must be one of"):
         SoArmEnvConfig(obs_type="state")
     with pytest.raises(ValueError, match="camera_config"):

@@ -52,6 +52,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--units", choices=UNITS, default="lerobot", help="joint units (default lerobot)"
     )
     parser.add_argument(
+        "--wrist-roll-offset-deg",
+        type=float,
+        default=0.0,
+        metavar="DEG",
+        help="with LeRobot units: the real arm's wrist_roll reading when the model's is at "
+        "0 rad, e.g. -90 (default 0)",
+    )
+    parser.add_argument(
         "--keep",
         choices=KEEP_CHOICES,
         default="success",
@@ -89,12 +97,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             camera_config=camera_config,
             size=size,
             units=args.units,
+            wrist_roll_offset_deg=args.wrist_roll_offset_deg,
             keep=args.keep,
             dart_noise=args.dart_noise,
             overwrite=args.overwrite,
             progress=not args.no_progress,
         )
-    except (ValueError, FileExistsError) as exc:
+    except (ValueError, TypeError, FileExistsError) as exc:
         parser.error(str(exc))
     print(summary.text())
     if summary.interrupted:

@@ -11,7 +11,7 @@ from lerobot.envs.configs import EnvConfig
 import gym_soarm  # noqa: F401  (registers gym_soarm/<task> wherever this config is unpickled)
 from gym_soarm import constants
 from gym_soarm.env import resolve_camera_config
-from gym_soarm.units import UNITS
+from gym_soarm.units import UNITS, check_wrist_roll_offset
 
 ACTION = "action"
 OBS_STATE = "observation.state"
@@ -53,6 +53,8 @@ class SoArmEnvConfig(EnvConfig):
         render_camera: the camera of those videos.
         units: ``"lerobot"`` (body degrees, gripper 0-100, the real follower's units),
             ``"lerobot_range"`` or ``"radians"``.
+        wrist_roll_offset_deg: with LeRobot units, the real arm's wrist_roll reading
+            when the model's wrist_roll is at 0 rad (see :mod:`gym_soarm.units`).
     """
 
     task: str | None = "PickAndPlaceCube-v0"
@@ -65,6 +67,7 @@ class SoArmEnvConfig(EnvConfig):
     render_mode: str = "rgb_array"
     render_camera: str = constants.DEFAULT_RENDER_CAMERA
     units: str = "lerobot"
+    wrist_roll_offset_deg: float = 0.0
     features: dict[str, PolicyFeature] = field(default_factory=dict)
     features_map: dict[str, str] = field(default_factory=dict)
 
@@ -77,6 +80,7 @@ class SoArmEnvConfig(EnvConfig):
             )
         if self.units not in UNITS:
             raise ValueError(f"units must be one of {', '.join(UNITS)}; got {self.units!r}.")
+        self.wrist_roll_offset_deg = check_wrist_roll_offset(self.units, self.wrist_roll_offset_deg)
         cameras = _parse_cameras(self.camera_config)
         n_joints = len(constants.JOINT_NAMES)
         features: dict[str, PolicyFeature] = {
@@ -115,6 +119,7 @@ class SoArmEnvConfig(EnvConfig):
             "render_mode": self.render_mode,
             "render_camera": self.render_camera,
             "units": self.units,
+            "wrist_roll_offset_deg": self.wrist_roll_offset_deg,
         }
         if self.episode_length is not None:
             kwargs["max_episode_steps"] = self.episode_length
