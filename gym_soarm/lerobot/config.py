@@ -22,7 +22,7 @@ OBS_TYPES: tuple[str, ...] = ("pixels_agent_pos", "environment_state_agent_pos",
 TASKS: tuple[str, ...] = ("PickAndPlaceCube-v0", "LiftCube-v0")
 
 
-def _parse_cameras(camera_config: str) -> tuple[str, ...]:
+def parse_cameras(camera_config: str) -> tuple[str, ...]:
     if camera_config in constants.CAMERA_CONFIGS:
         return resolve_camera_config(camera_config)
     names = [name.strip() for name in camera_config.split(",") if name.strip()]
@@ -81,7 +81,7 @@ class SoArmEnvConfig(EnvConfig):
         if self.units not in UNITS:
             raise ValueError(f"units must be one of {', '.join(UNITS)}; got {self.units!r}.")
         self.wrist_roll_offset_deg = check_wrist_roll_offset(self.units, self.wrist_roll_offset_deg)
-        cameras = _parse_cameras(self.camera_config)
+        cameras = parse_cameras(self.camera_config)
         n_joints = len(constants.JOINT_NAMES)
         features: dict[str, PolicyFeature] = {
             ACTION: PolicyFeature(type=FeatureType.ACTION, shape=(n_joints,))
@@ -113,7 +113,7 @@ class SoArmEnvConfig(EnvConfig):
         obs_type = "pixels_agent_pos" if self.obs_type == "pixels" else self.obs_type
         kwargs: dict[str, Any] = {
             "obs_type": obs_type,
-            "camera_config": list(_parse_cameras(self.camera_config)),
+            "camera_config": list(parse_cameras(self.camera_config)),
             "observation_height": self.observation_height,
             "observation_width": self.observation_width,
             "render_mode": self.render_mode,
