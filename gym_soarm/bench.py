@@ -22,7 +22,7 @@ MuJoCo itself needs.
 
 ``--processes N`` adds the aggregate throughput of ``N`` environments stepped together
 by ``gymnasium.vector.AsyncVectorEnv``. The cold ``make`` time (an empty model cache:
-simplify the meshes and compile) is measured once per visual variant.
+rebuild the meshes and compile) is measured once per visual variant.
 
 Timings on a shared machine are noisy: read the medians and the ratios.
 """
@@ -296,7 +296,7 @@ def _measure_vector(config: BenchConfig, seconds: float, repeats: int, processes
 
 
 def _measure_cold_make(visual: str) -> dict:
-    """``gym.make`` with an empty model cache: simplify meshes (fast) and compile."""
+    """``gym.make`` with an empty model cache: rebuild the meshes and compile."""
     with tempfile.TemporaryDirectory(prefix="gym_soarm_cold_cache_") as folder:
         os.environ["GYM_SOARM_CACHE_DIR"] = folder
         import gymnasium as gym

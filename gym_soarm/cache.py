@@ -1,6 +1,6 @@
 """Files that gym_soarm derives once and keeps in the user's cache directory.
 
-The simplified visual meshes and the compiled scene models are built from packaged
+The visual meshes of both render qualities and the compiled scene models are built from packaged
 sources. Each cached file is named after a digest of everything it was built from
 (source bytes, settings, library versions), so a changed source or a new MuJoCo never
 reads a stale file: it simply misses and builds anew.

@@ -58,6 +58,9 @@ def _check_choice(name: str, value: Any, valid: Sequence[Any], none_ok: bool = F
         )
 
 
+_WRIST_ROLL = constants.JOINT_NAMES.index("wrist_roll")
+
+
 def _check_image_size(name: str, value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         raise ValueError(
@@ -282,6 +285,13 @@ class SoArmEnv(gym.Env):
                 f"action must be finite; got {array.tolist()!r} with NaN/inf for {bad}. "
                 "The simulation was not stepped; check the policy's output (e.g. its "
                 "normalisation statistics) before stepping."
+            )
+        if self._units.wrist_roll_offset_rad:
+            # A wrapped wrist_roll value beyond the Box would come back a turn away:
+            # clip it to the Box first, as every other joint is clipped.
+            roll = _WRIST_ROLL
+            array[roll] = min(
+                max(array[roll], self.action_space.low[roll]), self.action_space.high[roll]
             )
         if self.units != "radians":
             array = self._units.to_radians(array)

@@ -319,7 +319,9 @@ class ScriptedExpert:
         self.env = env.unwrapped
         self.config = config
         conversion = getattr(self.env, "joint_units", None)
-        self._units = conversion if isinstance(conversion, JointUnits) else joint_units(RADIANS)
+        if not isinstance(conversion, JointUnits):
+            conversion = joint_units(getattr(self.env, "units", RADIANS))
+        self._units = conversion
         physics: SoArmPhysics = self.env.physics
         self._kinematics = ArmKinematics(physics.model.ptr)
         self._n_arm = len(constants.ARM_JOINT_NAMES)

@@ -46,7 +46,7 @@ class SoArmPhysics(dm_mujoco.Physics):
         """A new physics instance of the packaged scene (the model is compiled once).
 
         Args:
-            visual: ``"fast"`` (simplified visual meshes) or ``"high"`` (the provider's
+            visual: ``"fast"`` (simplified visual meshes) or ``"high"`` (full-detail
                 meshes). Both have the same physics; only rendering differs.
         """
         return cls.from_model(dm_core.MjModel(model.load_scene_model(visual)))

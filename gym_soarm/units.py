@@ -10,8 +10,9 @@ joint positions as ``<motor>.pos`` values in one of two calibrated conventions:
   their range; ``wrist_roll``, calibrated over a full turn, maps -pi..pi rad onto
   -100..100. The gripper stays 0 to 100.
 
-Every conversion is affine per joint (``value = scale * rad + offset``); this module
-holds those figures once and the environment, the recorder and the dataset use them.
+Every conversion is affine per joint (``value = scale * rad + offset``), except the
+wrist_roll offset below; this module holds those figures once and the environment, the
+recorder and the dataset use them.
 
 ``wrist_roll`` is calibrated over a full turn, so its zero on a real arm is wherever the
 wrist was held during calibration, and a leader arm's zero need not be the model's. A
@@ -185,7 +186,8 @@ def check_wrist_roll_offset(units: str, wrist_roll_offset_deg: object) -> float:
     if not -180.0 <= offset <= 180.0:  # also refuses NaN
         raise ValueError(
             f"wrist_roll_offset_deg must be between -180 and 180 degrees; got {offset!r}. "
-            "Give the real arm's wrist_roll reading when the model's wrist_roll is at 0 rad."
+            "Give the real arm's wrist_roll reading when the model's wrist_roll is at 0 rad, "
+            "wrapped to that range (e.g. 270 is -90)."
         )
     if offset and units == RADIANS:
         raise ValueError(
@@ -219,14 +221,18 @@ def joint_units(units: str, wrist_roll_offset_deg: float = 0.0) -> JointUnits:
     return JointUnits(units, table.scale, table.offset, math.radians(offset))
 
 
-def radians_to_units(radians: np.ndarray | Sequence[float], units: str) -> np.ndarray:
+def radians_to_units(
+    radians: np.ndarray | Sequence[float], units: str, wrist_roll_offset_deg: float = 0.0
+) -> np.ndarray:
     """Convert six joint positions (last axis) from radians to ``units``."""
-    return joint_units(units).from_radians(radians)
+    return joint_units(units, wrist_roll_offset_deg).from_radians(radians)
 
 
-def units_to_radians(values: np.ndarray | Sequence[float], units: str) -> np.ndarray:
+def units_to_radians(
+    values: np.ndarray | Sequence[float], units: str, wrist_roll_offset_deg: float = 0.0
+) -> np.ndarray:
     """Convert six joint positions (last axis) from ``units`` to radians."""
-    return joint_units(units).to_radians(values)
+    return joint_units(units, wrist_roll_offset_deg).to_radians(values)
 
 
 def radians_to_lerobot(radians: np.ndarray | Sequence[float]) -> np.ndarray:

@@ -206,5 +206,6 @@ def quality_meshes(quality: str = "fast") -> dict[str, bytes]:
             data = simplify_stl(sources[name], quality)
             if cache.write(cache_name, data) is not None:
                 cache.prune(f"meshes/{quality}/{stem}-*.stl", keep=cache_name)
+                cache.prune(f"meshes/{stem}-*.stl", keep="")  # the layout before 0.5
         result[name] = data
     return result

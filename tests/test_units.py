@@ -290,6 +290,33 @@ def test_env_spaces_with_a_wrist_roll_offset(offset, wraps):
         env.close()
 
 
+def test_wrist_roll_actions_beyond_the_box_clip_to_its_nearer_bound():
+    """With or without an offset, a value past a bound goes to that bound's servo end."""
+    for offset, value, end in ((0.0, -179.0, LOW), (1e-6, -179.0, LOW), (10.0, 200.0, HIGH)):
+        env = gym.make(
+            "gym_soarm/LiftCube-v0",
+            obs_type="environment_state_agent_pos",
+            units="lerobot",
+            wrist_roll_offset_deg=offset,
+        )
+        try:
+            env.reset(seed=0)
+            action = np.array([0.0, 0.0, 0.0, 0.0, value, 50.0])
+            env.step(action)
+            target = env.unwrapped.physics.joint_targets()[WRIST_ROLL]
+            assert target == pytest.approx(end[WRIST_ROLL]), (offset, value)
+        finally:
+            env.close()
+
+
+def test_the_conversion_helpers_take_the_offset():
+    rad = _random_radians(20, seed=4)
+    values = units.radians_to_units(rad, "lerobot", wrist_roll_offset_deg=-90.0)
+    np.testing.assert_allclose(values, units.joint_units("lerobot", -90.0).from_radians(rad))
+    back = units.units_to_radians(values, "lerobot", wrist_roll_offset_deg=-90.0)
+    np.testing.assert_allclose(back, rad, atol=1e-12)
+
+
 def test_expert_speaks_the_offset_units():
     from gym_soarm import make_expert
 
@@ -297,7 +324,7 @@ def test_expert_speaks_the_offset_units():
         "gym_soarm/LiftCube-v0",
         obs_type="environment_state_agent_pos",
         units="lerobot",
-        wrist_roll_offset_deg=-90.0,
+        wrist_roll_offset_deg=-45.0,  # not a quarter turn, which the cube would hide
     )
     try:
         expert = make_expert(env)

@@ -23,6 +23,7 @@ TASKS: tuple[str, ...] = ("PickAndPlaceCube-v0", "LiftCube-v0")
 
 
 def parse_cameras(camera_config: str) -> tuple[str, ...]:
+    """Camera names of a camera config or of comma-separated names (ValueError if bad)."""
     if camera_config in constants.CAMERA_CONFIGS:
         return resolve_camera_config(camera_config)
     names = [name.strip() for name in camera_config.split(",") if name.strip()]

@@ -33,6 +33,7 @@ from lerobot.utils.errors import DeviceAlreadyConnectedError, DeviceNotConnected
 from gym_soarm import ENV_IDS, constants
 from gym_soarm.env import SoArmEnv
 from gym_soarm.lerobot.config import TASKS, parse_cameras
+from gym_soarm.rendering import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE, RENDER_QUALITIES
 from gym_soarm.units import FEATURE_NAMES, LEROBOT, UNITS, check_wrist_roll_offset
 
 logger = logging.getLogger(__name__)
@@ -84,6 +85,23 @@ class SimSoArmFollowerConfig(RobotConfig):
             raise ValueError(
                 f"steps_per_action must be an int >= 0 (0 follows the wall clock); got {steps!r}."
             )
+        seed = self.seed
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
+            raise ValueError(f"seed must be None or an int >= 0; got {seed!r}.")
+        if self.render_quality not in RENDER_QUALITIES:
+            raise ValueError(
+                f"render_quality must be one of {', '.join(RENDER_QUALITIES)}; "
+                f"got {self.render_quality!r}."
+            )
+        for name in ("observation_height", "observation_width"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise ValueError(f"{name} must be an int number of pixels; got {value!r}.")
+            if not MIN_IMAGE_SIZE <= value <= MAX_IMAGE_SIZE:
+                raise ValueError(
+                    f"{name} must be from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels; "
+                    f"got {value!r}."
+                )
         self.cameras_in_use()  # a bad camera_config fails here, not at connect
 
     def cameras_in_use(self) -> tuple[str, ...]:
@@ -146,8 +164,14 @@ class SimSoArmFollower(Robot):
             units=config.units,
             wrist_roll_offset_deg=config.wrist_roll_offset_deg,
         )
+        try:
+            self._last_obs, self.last_info = env.reset(seed=config.seed)
+        except BaseException:
+            env.close()  # not connected: a later connect() starts afresh
+            raise
         self.env = env
-        self.reset(seed=config.seed)
+        self._last_action_time = None
+        self._unsimulated_s = 0.0
         logger.info("%s connected: %s", self, env.task_description)
 
     def calibrate(self) -> None:
@@ -185,6 +209,8 @@ class SimSoArmFollower(Robot):
 
         Returns:
             The targets the servos got, in the robot's units (clipped to their range).
+            If the physics diverged, the scene was reset (with a warning) and these are
+            the home pose's targets.
 
         Raises:
             ValueError: a ``<motor>.pos`` value is missing or not a finite number; the
@@ -197,14 +223,18 @@ class SimSoArmFollower(Robot):
                 f"action must hold {', '.join(FEATURE_NAMES)}; got {sorted(action)!r}, "
                 f"missing {missing}. Check the teleoperator's motor names."
             )
-        try:
-            targets = np.array([float(action[name]) for name in FEATURE_NAMES])
-        except (TypeError, ValueError) as exc:
-            given = {name: action[name] for name in FEATURE_NAMES}
+        given = {name: action[name] for name in FEATURE_NAMES}
+        targets = None
+        if not any(isinstance(v, (str, bytes, bool, np.bool_)) for v in given.values()):
+            try:
+                targets = np.array([float(value) for value in given.values()])
+            except (TypeError, ValueError):
+                targets = None
+        if targets is None or not np.isfinite(targets).all():
             raise ValueError(
-                f"action values must be numbers in {self.config.units} units; got {given!r} "
-                f"({exc}). Check the teleoperator's output."
-            ) from None
+                f"action values must be finite numbers in {self.config.units} units; got "
+                f"{given!r}. Check the teleoperator's output; the simulation was not advanced."
+            )
         for _ in range(self._steps_to_take()):
             obs, _, _, truncated, info = env.step(targets)  # checks finiteness first
             self._last_obs, self.last_info = obs, info
