@@ -33,7 +33,7 @@ logger = logging.getLogger(__name__)
 
 ROBOT_FILE = "so101.xml"
 SCENE_FILE = "scene.xml"
-VISUAL_VARIANTS = ("fast", "high")
+VISUAL_VARIANTS: tuple[str, ...] = tuple(visual_meshes.MESH_SETTINGS)  # ("fast", "high")
 # Bump when the way models are built changes, so old cached binaries are not reused.
 MODEL_CACHE_VERSION = 1
 

