@@ -28,8 +28,8 @@ from tqdm import tqdm
 
 import gym_soarm
 from gym_soarm import constants
-from gym_soarm.display import DisplayUnavailableError, window_support_problem
-from gym_soarm.video import save_frames_to_mp4
+from gym_soarm.render.display import DisplayUnavailableError, window_support_problem
+from gym_soarm.render.video import save_frames_to_mp4
 
 ENV_ID = "SoArm-v0"
 TAIL_STEPS = 25  # keep recording 0.5 s after success: the release and retreat

@@ -30,8 +30,8 @@ import numpy as np
 
 import gym_soarm
 from gym_soarm import constants
-from gym_soarm.display import DisplayUnavailableError, require_windows
-from gym_soarm.viewer import CAMERA_KEYS, draw_text_block
+from gym_soarm.render.display import DisplayUnavailableError, require_windows
+from gym_soarm.render.viewer import CAMERA_KEYS, draw_text_block
 
 CONTROL_WINDOW = "SO-101 joints"
 CAMERA_WINDOW = "SO-101 camera"

@@ -1,10 +1,13 @@
 """gym_soarm: the SO-ARM101 arm as a Gymnasium environment on dm_control and MuJoCo.
 
-Importing the package registers three environment ids::
+Importing the package registers an environment id per task of the registry
+(:mod:`gym_soarm.tasks`), ``gym_soarm/<Task>-v0``, plus the original ``SoArm-v0``
+(pick and place; also ``gym_soarm/SoArm-v0``). :data:`ENV_IDS` lists them all.
 
-    SoArm-v0                         pick and place (the original id), 400 steps
-    gym_soarm/PickAndPlaceCube-v0    pick and place, 400 steps
-    gym_soarm/LiftCube-v0            lift the cube 5 cm, 250 steps
+Layout: ``sim/`` (scene building, physics, kinematics), ``tasks/`` (one module per task
+with its expert), ``render/`` (offscreen cameras, window, video files), ``data/``
+(LeRobot dataset writer and recorder), ``tools/`` (benchmark), ``cli/`` (command lines),
+``lerobot/`` (LeRobot integration), :mod:`gym_soarm.validation` (argument checks).
 """
 
 from __future__ import annotations
@@ -37,40 +40,28 @@ def _import_dm_control_without_gl() -> None:
 
 _import_dm_control_without_gl()
 
-from gymnasium.envs.registration import register, registry  # noqa: E402
-
-from gym_soarm.display import DisplayUnavailableError  # noqa: E402
 from gym_soarm.env import SoArmEnv  # noqa: E402
-from gym_soarm.meshes import MeshError  # noqa: E402
-from gym_soarm.rendering import GLBackendError  # noqa: E402
-from gym_soarm.video import save_frames_to_mp4  # noqa: E402
+from gym_soarm.render.backend import GLBackendError  # noqa: E402
+from gym_soarm.render.display import DisplayUnavailableError  # noqa: E402
+from gym_soarm.render.video import save_frames_to_mp4  # noqa: E402
+from gym_soarm.sim.meshes import MeshError  # noqa: E402
+from gym_soarm.tasks import (  # noqa: E402
+    ENV_IDS,
+    TaskSpec,
+    get_task,
+    register_task,
+    task_names,
+)
 
-__version__ = "0.5.0"
-
-ENV_IDS: dict[str, tuple[str, int]] = {
-    "SoArm-v0": ("pick_and_place", 400),
-    "gym_soarm/PickAndPlaceCube-v0": ("pick_and_place", 400),
-    "gym_soarm/LiftCube-v0": ("lift", 250),
-}
-
-for _env_id, (_task, _steps) in ENV_IDS.items():
-    if _env_id not in registry:
-        register(
-            id=_env_id,
-            entry_point="gym_soarm.env:SoArmEnv",
-            max_episode_steps=_steps,
-            kwargs={"task": _task},
-        )
+__version__ = "0.6.0"
 
 
-def __getattr__(name: str) -> object:
-    # make_expert is imported on first use, so that `python -m gym_soarm.expert` runs
-    # the module once, as __main__.
-    if name == "make_expert":
-        from gym_soarm.expert import make_expert
+def make_expert(env, config=None):
+    """A scripted expert for ``env``'s task; see :func:`gym_soarm.expert.make_expert`."""
+    from gym_soarm.expert import DEFAULT_CONFIG
+    from gym_soarm.expert import make_expert as _make_expert
 
-        return make_expert
-    raise AttributeError(f"module 'gym_soarm' has no attribute {name!r}")
+    return _make_expert(env, DEFAULT_CONFIG if config is None else config)
 
 
 __all__ = [
@@ -79,7 +70,11 @@ __all__ = [
     "GLBackendError",
     "MeshError",
     "SoArmEnv",
+    "TaskSpec",
     "__version__",
+    "get_task",
     "make_expert",
+    "register_task",
     "save_frames_to_mp4",
+    "task_names",
 ]

@@ -33,10 +33,7 @@ DEFAULT_RENDER_CAMERA = "front_camera"
 # Sites, geoms and bodies the tasks read.
 GRIPPER_SITE = "gripperframe"
 GRASP_SITE = "grasp_center"
-CUBE_JOINT = "cube"
-CUBE_GEOM = "cube"
-CUBE_SITE = "cube"
-GOAL_SITE = "goal"
+TABLE_GEOM = "tabletop"
 JAW_PAD_GEOMS: tuple[str, str] = ("fixed_jaw_pad", "moving_jaw_pad")
 JAW_TOUCH_SENSORS: tuple[str, str] = ("fixed_jaw_touch", "moving_jaw_touch")
 HOME_KEYFRAME = "home"
@@ -52,32 +49,8 @@ ROBOT_BASE_POS_M: tuple[float, float, float] = (0.0, 0.15, 0.0)
 ROBOT_BASE_YAW_DEG = 90.0
 TABLE_SIZE_M: tuple[float, float] = (0.64, 0.45)
 TABLE_TOP_Z_M = 0.0
-CUBE_SIZE_M = 0.03
-CUBE_HALF_M = CUBE_SIZE_M / 2
-GOAL_RADIUS_M = 0.04
 
-# The 3 x 3 grid of cube start cells. Cell i sits at GRID_CENTER + (dx, dy) with
-# dx = GRID_DX_M[i // 3] and dy = GRID_DY_M[i % 3].
-GRID_CENTER_M: tuple[float, float] = (0.0, 0.35)
-GRID_DX_M: tuple[float, float, float] = (-0.10, 0.0, 0.10)
-GRID_DY_M: tuple[float, float, float] = (-0.075, 0.0, 0.075)
-NUM_GRID_CELLS = 9
-CUBE_YAWS_DEG: tuple[float, ...] = (0.0, 30.0, 45.0, 60.0)
-
-
-def grid_cell_offset(cell: int) -> tuple[float, float]:
-    """Offset (dx, dy) in metres of grid cell ``cell`` from the grid centre."""
-    return GRID_DX_M[cell // 3], GRID_DY_M[cell % 3]
-
-
-def grid_cell_position(cell: int) -> tuple[float, float]:
-    """World (x, y) in metres of the centre of grid cell ``cell``."""
-    dx, dy = grid_cell_offset(cell)
-    return GRID_CENTER_M[0] + dx, GRID_CENTER_M[1] + dy
-
-
-# Success and reward figures.
-LIFT_HEIGHT_M = 0.05  # lift task: cube bottom this far above the table
-PLACE_HEIGHT_TOL_M = 0.005  # pick-and-place: cube bottom within this of the pad top
-GOAL_TOP_Z_M = 0.001
+# Physics safety: an object farther than this from the origin was thrown by a diverging
+# simulation (the floor is 0.75 m below the table).
+POSITION_BOUND_M = 5.0
 DEG = math.pi / 180.0

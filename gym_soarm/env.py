@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import copy
 import math
-import numbers
 import reprlib
 import warnings
 from collections import OrderedDict
@@ -17,90 +16,35 @@ from dm_control.rl import control
 from gymnasium import spaces
 
 from gym_soarm import constants
-from gym_soarm.physics import SoArmPhysics
-from gym_soarm.rendering import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE, RENDER_QUALITIES, CameraRenderer
-from gym_soarm.tasks import TASKS, SoArmTask
+from gym_soarm.render.backend import RENDER_QUALITIES
+from gym_soarm.render.camera import CameraRenderer
+from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.tasks import get_task, task_names
+from gym_soarm.tasks.base import Task, TaskSpec
 from gym_soarm.units import UNITS, JointUnits, check_wrist_roll_offset, joint_units
+from gym_soarm.validation import (
+    check_choice,
+    check_image_size,
+    choices,
+    resolve_camera_config,
+)
 
 OBS_TYPES = ("pixels", "pixels_agent_pos", "environment_state_agent_pos")
 REWARD_TYPES = ("dense", "sparse")
-RESET_OPTION_KEYS = ("cube_grid_position", "cube_rotation_deg")
 # LeRobot's evaluation (lerobot >= 0.6) marks the start of every rollout with this reset
 # option; it is accepted and has no effect.
 LEROBOT_ROLLOUT_OPTION = "lerobot_new_rollout"
-ENVIRONMENT_STATE_LAYOUT: tuple[tuple[str, int], ...] = (
-    ("cube_pos", 3),
-    ("cube_quat_wxyz", 4),
-    ("gripper_pos", 3),
-    ("goal_pos", 3),
-)
-ENVIRONMENT_STATE_SIZE = sum(n for _, n in ENVIRONMENT_STATE_LAYOUT)
-# Positions stay within a few metres of the table (the floor is 0.75 m below it);
-# quaternion components are within [-1, 1].
-_POSITION_BOUND_M = 5.0
-ENVIRONMENT_STATE_HIGH = np.concatenate(
-    [np.full(3, _POSITION_BOUND_M), np.ones(4), np.full(6, _POSITION_BOUND_M)]
-)
-ENVIRONMENT_STATE_LOW = -ENVIRONMENT_STATE_HIGH
-
-
-def _choices(values: Sequence[Any]) -> str:
-    return ", ".join(repr(v) for v in values)
-
-
-def _check_choice(name: str, value: Any, valid: Sequence[Any], none_ok: bool = False) -> None:
-    if none_ok and value is None:
-        return
-    if not isinstance(value, str) or value not in valid:
-        options = _choices(valid) + (" or None" if none_ok else "")
-        raise ValueError(
-            f"{name} must be one of {options}; got {value!r}. Pass e.g. {name}={valid[0]!r}."
-        )
-
-
 _WRIST_ROLL = constants.JOINT_NAMES.index("wrist_roll")
 
 
-def _check_image_size(name: str, value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise ValueError(
-            f"{name} must be an int from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels; got {value!r}."
-        )
-    if not MIN_IMAGE_SIZE <= int(value) <= MAX_IMAGE_SIZE:
-        raise ValueError(
-            f"{name} must be from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels; got {value!r}."
-        )
-    return int(value)
-
-
-def resolve_camera_config(camera_config: str | Sequence[str]) -> tuple[str, ...]:
-    """Cameras named by a camera config, in the fixed order overview, front, wrist."""
-    if isinstance(camera_config, str):
-        if camera_config not in constants.CAMERA_CONFIGS:
-            raise ValueError(
-                f"camera_config must be one of {_choices(constants.CAMERA_CONFIGS)} or a sequence "
-                f"of camera names from {_choices(constants.CAMERA_NAMES)}; got {camera_config!r}."
-            )
-        return constants.CAMERA_CONFIGS[camera_config]
-    if not isinstance(camera_config, Sequence) or not camera_config:
-        raise ValueError(
-            f"camera_config must be one of {_choices(constants.CAMERA_CONFIGS)} or a non-empty "
-            f"sequence of camera names from {_choices(constants.CAMERA_NAMES)}; got {camera_config!r}."
-        )
-    unknown = [c for c in camera_config if c not in constants.CAMERA_NAMES]
-    if unknown:
-        raise ValueError(
-            f"camera_config must name cameras from {_choices(constants.CAMERA_NAMES)}; got "
-            f"unknown cameras {unknown!r}. Pass e.g. camera_config=['front_camera']."
-        )
-    return tuple(c for c in constants.CAMERA_NAMES if c in camera_config)
-
-
 class SoArmEnv(gym.Env):
-    """SO-ARM101 cube manipulation on a table, on MuJoCo through dm_control.
+    """The SO-ARM101 on a table with one registered task, on MuJoCo through dm_control.
 
-    The arm stands at (0, 0.15, 0) facing +y across a 64 x 45 cm table; a 3 cm blue
-    cube starts on one of nine grid cells with a yaw from {0, 30, 45, 60} degrees.
+    The arm stands at (0, 0.15, 0) facing +y across a 64 x 45 cm table. The task (see
+    :mod:`gym_soarm.tasks`) owns the episode: its objects and fixtures, where they
+    start, the environment state, the reward terms, success and the instruction
+    (``task_description``). This class adapts it to Gymnasium: it checks arguments,
+    builds the spaces, steps the physics and renders the cameras.
 
     **Actions** ``Box((6,), float32)``: absolute servo targets in radians, in the
     order of the table below; values outside the bounds are clipped.
@@ -130,14 +74,15 @@ class SoArmEnv(gym.Env):
     body joints in -100 to 100 (see :mod:`gym_soarm.units`). The action bounds follow.
 
     **Diverging physics**: when a step leaves the simulation with NaN/inf, raises a
-    MuJoCo instability warning, throws the cube more than 5 m or turns a joint past
+    MuJoCo instability warning, throws an object more than 5 m or turns a joint past
     +-pi, ``step`` warns (``RuntimeWarning``) and returns ``truncated=True``, reward 0,
     ``info["physics_unstable"] = True`` and copies of the previous step's observation
     and info (finite, inside the observation space; ``is_success`` False and every
     reward term 0). The next ``step`` raises until ``reset()`` starts a clean episode.
 
     Args:
-        task: ``"pick_and_place"`` or ``"lift"``.
+        task: a registered task's name (``"PickAndPlaceCube-v0"``, ``"LiftCube-v0"``, ...;
+            see :func:`gym_soarm.tasks.task_names`) or one of its aliases.
         obs_type: one of :data:`OBS_TYPES`.
         camera_config: ``"front_only"``, ``"front_wrist"``, ``"all"`` or camera names.
         observation_height: image height in pixels (16 to 2048).
@@ -159,7 +104,7 @@ class SoArmEnv(gym.Env):
 
     def __init__(
         self,
-        task: str = "pick_and_place",
+        task: str = "PickAndPlaceCube-v0",
         obs_type: str = "pixels_agent_pos",
         camera_config: str | Sequence[str] = constants.DEFAULT_CAMERA_CONFIG,
         observation_height: int = 480,
@@ -172,16 +117,16 @@ class SoArmEnv(gym.Env):
         wrist_roll_offset_deg: float = 0.0,
     ) -> None:
         # Validate every argument before building anything.
-        _check_choice("task", task, tuple(TASKS))
-        _check_choice("obs_type", obs_type, OBS_TYPES)
+        spec = self._check_task(task)
+        check_choice("obs_type", obs_type, OBS_TYPES)
         cameras = resolve_camera_config(camera_config)
-        height = _check_image_size("observation_height", observation_height)
-        width = _check_image_size("observation_width", observation_width)
-        _check_choice("render_mode", render_mode, self.metadata["render_modes"], none_ok=True)
-        _check_choice("render_camera", render_camera, constants.CAMERA_NAMES)
-        _check_choice("render_quality", render_quality, RENDER_QUALITIES)
-        _check_choice("reward_type", reward_type, REWARD_TYPES)
-        _check_choice("units", units, UNITS)
+        height = check_image_size("observation_height", observation_height)
+        width = check_image_size("observation_width", observation_width)
+        check_choice("render_mode", render_mode, self.metadata["render_modes"], none_ok=True)
+        check_choice("render_camera", render_camera, constants.CAMERA_NAMES)
+        check_choice("render_quality", render_quality, RENDER_QUALITIES)
+        check_choice("reward_type", reward_type, REWARD_TYPES)
+        check_choice("units", units, UNITS)
         wrist_roll_offset_deg = check_wrist_roll_offset(units, wrist_roll_offset_deg)
 
         self.render_mode = render_mode
@@ -198,10 +143,11 @@ class SoArmEnv(gym.Env):
         self._units = joint_units(units, wrist_roll_offset_deg)
 
         # The render quality picks the visual meshes; the physics is the same for both.
-        self._physics = SoArmPhysics.from_scene(render_quality)
-        self._task: SoArmTask = TASKS[task]()
-        self.task = self._task.name
-        self.task_description = self._task.description
+        self._spec = spec
+        self._physics = SoArmPhysics.from_scene(spec.scene, render_quality, spec.name)
+        self._task: Task = spec.make_task()
+        self.task = spec.name
+        self._options: dict[str, Any] = {}
         self._camera_ids = {
             name: self._physics.model.name2id(name, "camera") for name in constants.CAMERA_NAMES
         }
@@ -223,7 +169,7 @@ class SoArmEnv(gym.Env):
         self.observation_space = self._make_observation_space()
 
         if render_mode == "human":
-            from gym_soarm.viewer import HumanViewer
+            from gym_soarm.render.viewer import HumanViewer
 
             self._viewer = HumanViewer(self)
 
@@ -244,7 +190,7 @@ class SoArmEnv(gym.Env):
             return pixels
         if self.obs_type == "pixels_agent_pos":
             return spaces.Dict(OrderedDict(pixels=pixels, agent_pos=agent_pos))
-        env_state = spaces.Box(ENVIRONMENT_STATE_LOW, ENVIRONMENT_STATE_HIGH, dtype=np.float64)
+        env_state = spaces.Box(*self._task.state_bounds(), dtype=np.float64)
         return spaces.Dict(OrderedDict(agent_pos=agent_pos, environment_state=env_state))
 
     # --- physics access --------------------------------------------------------------
@@ -259,9 +205,29 @@ class SoArmEnv(gym.Env):
         return self._units
 
     @property
-    def task_logic(self) -> SoArmTask:
-        """The dm_control task holding this environment's episode logic."""
+    def task_logic(self) -> Task:
+        """The task object holding this environment's episode logic."""
         return self._task
+
+    @property
+    def task_spec(self) -> TaskSpec:
+        """The registered declaration of this environment's task."""
+        return self._spec
+
+    @property
+    def task_description(self) -> str:
+        """The episode's instruction, e.g. "Pick up the blue cube and place it on the green pad."."""
+        return self._task.instruction
+
+    @property
+    def state_layout(self) -> tuple[tuple[str, int], ...]:
+        """The ``environment_state`` layout: ordered (field, size) pairs of the task."""
+        return self._task.state_layout
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """The name of each ``environment_state`` value (for datasets), in order."""
+        return self._task.state_names
 
     @property
     def viewer(self) -> Any:
@@ -325,59 +291,42 @@ class SoArmEnv(gym.Env):
         return array
 
     @staticmethod
-    def _validate_options(options: Mapping[str, Any] | None) -> tuple[int | None, float | None]:
+    def _check_task(task: Any) -> TaskSpec:
+        try:
+            return get_task(task)
+        except ValueError:
+            raise ValueError(
+                f"task must be one of {choices(task_names())} (or an alias); got {task!r}. "
+                "Register your own with gym_soarm.register_task(spec)."
+            ) from None
+
+    def _validate_options(self, options: Mapping[str, Any] | None) -> dict[str, Any]:
+        keys = self._task.option_keys
+        example = f"options={{{keys[0]!r}: ...}}" if keys else "options=None"
         if options is None:
-            return None, None
+            return {}
         if not isinstance(options, Mapping):
             raise ValueError(
-                f"options must be a dict with keys from {_choices(RESET_OPTION_KEYS)}; got "
-                f"{options!r}. Pass e.g. options={{'cube_grid_position': 4}}."
+                f"options must be a dict with keys from {choices(keys) or 'none'}; got "
+                f"{options!r}. Pass e.g. {example}."
             )
-        unknown = sorted(set(options) - {*RESET_OPTION_KEYS, LEROBOT_ROLLOUT_OPTION}, key=repr)
+        unknown = sorted(set(options) - {*keys, LEROBOT_ROLLOUT_OPTION}, key=repr)
         if unknown:
             raise ValueError(
-                f"unknown reset option(s) {unknown!r}: options must have keys from "
-                f"{_choices(RESET_OPTION_KEYS)}; got {list(options)!r}. Remove the others."
+                f"unknown reset option(s) {unknown!r}: {self.task} takes options with keys "
+                f"from {choices(keys) or 'none'}; got {list(options)!r}. Remove the others."
             )
-        cell = options.get("cube_grid_position")
-        if cell is not None:
-            if isinstance(cell, (bool, np.bool_)) or not isinstance(cell, numbers.Integral):
-                raise ValueError(
-                    "cube_grid_position must be an int from 0 to 8 or None (random cell); "
-                    f"got {cell!r} of type {type(cell).__name__}."
-                )
-            if not 0 <= int(cell) < constants.NUM_GRID_CELLS:
-                raise ValueError(
-                    f"cube_grid_position must be from 0 to {constants.NUM_GRID_CELLS - 1} or None; "
-                    f"got {cell!r}."
-                )
-            cell = int(cell)
-        yaw = options.get("cube_rotation_deg")
-        if yaw is not None:
-            if isinstance(yaw, (bool, np.bool_)) or not isinstance(yaw, numbers.Real):
-                raise ValueError(
-                    "cube_rotation_deg must be a finite number of degrees or None (random pick from "
-                    f"{constants.CUBE_YAWS_DEG}); got {yaw!r} of type {type(yaw).__name__}. "
-                    "Pass e.g. 45.0."
-                )
-            if not math.isfinite(float(yaw)):
-                raise ValueError(
-                    f"cube_rotation_deg must be a finite number of degrees; got {yaw!r}. Pass "
-                    "e.g. 45.0, or None for a random pick."
-                )
-            yaw = float(yaw)
-        return cell, yaw
+        return self._task.validate_options({k: v for k, v in options.items() if k in keys})
 
     # --- Gymnasium API -------------------------------------------------------------------
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[Any, dict[str, Any]]:
         self._check_open("reset")
-        cell, yaw = self._validate_options(options)
+        options = self._validate_options(options)
         super().reset(seed=seed)
-        self._task.configure_episode(self.np_random, cell, yaw)
         with self._physics.reset_context():
-            self._task.initialize_episode(self._physics)
+            self._task.initialize_episode(self._physics, self.np_random, options)
         self._needs_reset = False
         self._step_count = 0
         obs = self._observation()
@@ -411,7 +360,21 @@ class SoArmEnv(gym.Env):
         return obs, reward, success, False, info
 
     def render(self) -> np.ndarray | None:
+        """The ``render_camera`` frame (``rgb_array``), or draw the window (``human``).
+
+        With ``render_mode=None`` there is nothing to render: it warns and returns None.
+        """
         self._check_open("render")
+        if self.render_mode is None:
+            env_id = self.spec.id if self.spec is not None else self._spec.env_id
+            warnings.warn(
+                "render() was called on an environment made without a render_mode, so it "
+                f'returns None. Make it with e.g. gym.make("{env_id}", render_mode="rgb_array") '
+                "to get frames, or read the cameras from pixel observations.",
+                UserWarning,
+                stacklevel=2,
+            )
+            return None
         if self.render_mode == "rgb_array":
             return self.render_camera_image(self.render_camera)
         if self.render_mode == "human" and self._viewer is not None:
@@ -442,18 +405,20 @@ class SoArmEnv(gym.Env):
         """Why the simulation state is no longer physical, or None while it is sound.
 
         Besides NaN/inf (MuJoCo's own instability warnings raise ``PhysicsError`` in
-        ``step``), a cube thrown beyond the observation bounds or a joint turned past
+        ``step``), an object thrown beyond the observation bounds or a joint turned past
         +-pi can only come from an exploding simulation.
         """
         physics = self._physics
         if not physics.state_is_finite():
             return "the simulation state holds NaN or inf"
         # Plain floats: a few numpy reductions would cost more than the rest of the check.
-        cube = physics.cube_position().tolist()
-        if max(map(abs, cube)) > _POSITION_BOUND_M:
+        farthest = physics.max_object_distance()
+        if farthest is not None and farthest[1] > constants.POSITION_BOUND_M:
+            name = farthest[0]
+            where = [round(v, 2) for v in physics.object_position(name).tolist()]
             return (
-                f"the cube was thrown to {[round(v, 2) for v in cube]} m, more than "
-                f"{_POSITION_BOUND_M} m from the table"
+                f"the {name} was thrown to {where} m, more than "
+                f"{constants.POSITION_BOUND_M} m from the table"
             )
         angles = physics.joint_angles().tolist()
         if max(map(abs, angles)) > math.pi:
@@ -496,9 +461,9 @@ class SoArmEnv(gym.Env):
         renderer of its own (created once, reused).
         """
         self._check_open("render_camera_image")
-        _check_choice("camera", camera, constants.CAMERA_NAMES)
-        h = self.observation_height if height is None else _check_image_size("height", height)
-        w = self.observation_width if width is None else _check_image_size("width", width)
+        check_choice("camera", camera, constants.CAMERA_NAMES)
+        h = self.observation_height if height is None else check_image_size("height", height)
+        w = self.observation_width if width is None else check_image_size("width", width)
         renderer = self._renderer_for(h, w)
         return renderer.render(self._physics.data.ptr, self._camera_ids[camera])
 
@@ -514,14 +479,7 @@ class SoArmEnv(gym.Env):
         if self.obs_type == "environment_state_agent_pos":
             obs = {
                 "agent_pos": self._units.from_radians(physics.joint_angles()),
-                "environment_state": np.concatenate(
-                    [
-                        physics.cube_position(),
-                        physics.cube_quaternion(),
-                        physics.gripper_position(),
-                        physics.goal_position(),
-                    ]
-                ),
+                "environment_state": self._task.environment_state(physics),
             }
         else:
             renderer = self._renderer_for(self.observation_height, self.observation_width)
@@ -546,12 +504,9 @@ class SoArmEnv(gym.Env):
             success = self._task.is_success(physics)
         if terms is None:
             terms = self._task.reward_terms(physics, success=success)
-        start = self._task.start
         self._last_info = {
             "is_success": bool(success),
-            "cube_grid_position": start.grid_cell,
-            "cube_rotation_deg": start.yaw_deg,
-            "cube_pos": physics.cube_position(),
+            **self._task.episode_info(physics),
             "gripper_pos": physics.gripper_position(),
             "reward_terms": dict(terms),
             "task": self.task_description,

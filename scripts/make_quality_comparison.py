@@ -18,7 +18,7 @@ import gymnasium as gym
 import numpy as np
 from picture_tools import parse_picture_args, run_to_approach, write_picture
 
-from gym_soarm.rendering import CameraRenderer
+from gym_soarm.render.camera import CameraRenderer
 
 OUTPUT = Path(__file__).resolve().parents[1] / "docs" / "quality_fast_vs_high.png"
 FRONT_SIZE = (480, 640)  # rendered (height, width); the arm is cropped out of it

@@ -14,8 +14,9 @@ import numpy as np
 import pytest
 from conftest import colour_counts
 
-from gym_soarm import bench, model
-from gym_soarm.rendering import CameraRenderer
+from gym_soarm.sim import scene as model
+from gym_soarm.tools import bench
+from gym_soarm.render.camera import CameraRenderer
 
 STAT_FIELDS = {"median", "min", "max", "repeats"}
 

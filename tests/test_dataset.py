@@ -13,7 +13,7 @@ import pytest
 from dataset_files import decode_video, frame_times, psnr, read_dataset
 
 from gym_soarm import units
-from gym_soarm.dataset import (
+from gym_soarm.data import (
     AUTO_FEATURES,
     QUANTILES,
     STAT_NAMES,
@@ -369,7 +369,7 @@ INTERRUPTED = textwrap.dedent(
     """
     import os, sys
     import numpy as np
-    from gym_soarm.dataset import LeRobotDatasetWriter
+    from gym_soarm.data import LeRobotDatasetWriter
     sys.path.insert(0, {tests!r})
     from test_dataset import _good_frame, _state_features
     writer = LeRobotDatasetWriter.create({root!r}, 50, _state_features())

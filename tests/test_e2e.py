@@ -13,7 +13,8 @@ from conftest import SMALL, rollout
 from gymnasium.utils.env_checker import check_env
 
 import gym_soarm
-from gym_soarm import constants, meshes
+from gym_soarm import constants
+from gym_soarm.sim import meshes
 
 ALL_IDS = list(gym_soarm.ENV_IDS)
 # Actions are absolute joint targets in radians bounded by the servo ranges (by design),
@@ -22,7 +23,7 @@ ACTION_ADVICE = ".*For Box action spaces, we recommend using a symmetric and nor
 
 
 def _gui_available() -> bool:
-    from gym_soarm import display
+    from gym_soarm.render import display
 
     return display.window_support_problem() is None
 

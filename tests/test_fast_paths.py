@@ -15,8 +15,9 @@ import pytest
 from dm_control import mujoco as dm_mujoco
 from dm_control.rl import control
 
-from gym_soarm import cache, meshes, model, visual_meshes
-from gym_soarm.physics import SoArmPhysics
+from gym_soarm.sim import cache, meshes, visual_meshes
+from gym_soarm.sim import scene as model
+from gym_soarm.sim.physics import SoArmPhysics
 
 N_SUBSTEPS = 10
 
@@ -80,7 +81,7 @@ def test_a_new_mujoco_warning_raises_physics_error_or_is_logged(caplog):
     physics.data.qvel[:] = 1e12
     with caplog.at_level(logging.WARNING), physics.suppress_physics_errors():
         physics.step(N_SUBSTEPS)
-    logged = [r.getMessage() for r in caplog.records if r.name == "gym_soarm.physics"]
+    logged = [r.getMessage() for r in caplog.records if r.name == "gym_soarm.sim.physics"]
     assert len(logged) == 1 and "BADQVEL" in logged[0]
 
 
@@ -176,7 +177,7 @@ def test_cache_dir_follows_the_environment_variable(monkeypatch, tmp_path):
 
 _LOAD_AND_DESCRIBE = """
 import json, sys
-from gym_soarm import model
+from gym_soarm.sim import scene as model
 m = model.load_scene_model(sys.argv[1])
 print(json.dumps({"nmeshface": int(m.nmeshface), "mesh_vert": float(m.mesh_vert.sum()),
                   "body_mass": m.body_mass.tolist(), "name": model.model_cache_name(sys.argv[1])}))

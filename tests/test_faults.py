@@ -21,7 +21,8 @@ import numpy as np
 import pytest
 from conftest import INFO_KEYS, SMALL
 
-from gym_soarm import display, meshes
+from gym_soarm.render import display
+from gym_soarm.sim import meshes
 
 STATE = {"obs_type": "environment_state_agent_pos"}
 SUBPROCESS_TIMEOUT_S = 240
@@ -335,7 +336,7 @@ RENDER_AND_REPORT = """
     import json
     import gymnasium as gym
     import gym_soarm
-    from gym_soarm import rendering
+    from gym_soarm.render import backend as rendering
 
     state = gym.make("SoArm-v0", obs_type="environment_state_agent_pos")
     state.reset(seed=0)
@@ -411,7 +412,7 @@ HUMAN_MODE = """
     import json
     import gymnasium as gym
     import gym_soarm
-    from gym_soarm.display import DisplayUnavailableError
+    from gym_soarm.render.display import DisplayUnavailableError
 
     try:
         env = gym.make("SoArm-v0", render_mode="human", observation_height=48, observation_width=64)

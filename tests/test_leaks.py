@@ -65,7 +65,7 @@ def test_make_step_close_cycles_leak_no_fds_threads_or_memory():
 
 
 def test_close_frees_every_renderer_and_is_safe_twice():
-    from gym_soarm import rendering
+    from gym_soarm.render import camera as rendering
 
     env = gym.make("SoArm-v0", render_mode="rgb_array", **SMALL)
     env.reset(seed=0)

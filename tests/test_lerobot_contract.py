@@ -115,7 +115,7 @@ def test_lerobot_rollout_option_is_accepted_and_others_are_not():
 CORE_IMPORTS = """
 import sys
 import gymnasium as gym
-import gym_soarm, gym_soarm.units, gym_soarm.dataset, gym_soarm.record, gym_soarm.expert
+import gym_soarm, gym_soarm.units, gym_soarm.data, gym_soarm.record, gym_soarm.expert
 env = gym.make("gym_soarm/LiftCube-v0", obs_type="environment_state_agent_pos", units="lerobot")
 env.reset(seed=0)
 gym_soarm.make_expert(env)

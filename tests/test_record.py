@@ -16,7 +16,7 @@ from dataset_files import decode_video, psnr, read_dataset
 
 from gym_soarm import units
 from gym_soarm.cli.record import main
-from gym_soarm.record import (
+from gym_soarm.data.record import (
     ENVIRONMENT_STATE_NAMES,
     default_root,
     parse_size,

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from gym_soarm import constants, units
-from gym_soarm.physics import SoArmPhysics
+from gym_soarm.sim.physics import SoArmPhysics
 
 LOW = np.array(units.SERVO_RANGE_LOW_RAD)
 HIGH = np.array(units.SERVO_RANGE_HIGH_RAD)

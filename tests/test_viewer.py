@@ -26,7 +26,7 @@ from xwindows import (
 )
 
 import gym_soarm
-from gym_soarm.display import opencv_gui_backend
+from gym_soarm.render.display import opencv_gui_backend
 
 HEIGHT, WIDTH = 120, 160  # small, and above Qt's minimum window size
 

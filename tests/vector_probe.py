@@ -21,7 +21,7 @@ import gymnasium as gym
 import numpy as np
 
 import gym_soarm
-from gym_soarm import rendering
+from gym_soarm.render import backend as rendering
 
 ENV_ID = "SoArm-v0"
 NUM_ENVS = 2

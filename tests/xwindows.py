@@ -33,7 +33,7 @@ def skip_or_fail(reason: str) -> None:
 
 def require_window_tools() -> None:
     """Skip/fail unless OpenCV can open windows here and xdotool and libX11 exist."""
-    from gym_soarm.display import window_support_problem
+    from gym_soarm.render.display import window_support_problem
 
     problem = window_support_problem()
     if problem is not None:

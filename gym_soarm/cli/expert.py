@@ -1,7 +1,8 @@
-"""``python -m gym_soarm.expert``: the scripted expert's success rate per task.
+"""``python -m gym_soarm.expert`` (``gym-soarm-expert``): each task's expert success rate.
 
-Runs :func:`gym_soarm.expert.evaluate` (every grid cell x the four seed yaws x the
-seeds, state observations) and prints one line per task.
+Runs :func:`gym_soarm.expert.evaluate` on every registered task (or the ones named),
+with state observations, and prints one line per task: success, steps to success and
+the time taken.
 """
 
 from __future__ import annotations
@@ -10,45 +11,58 @@ import argparse
 import time
 from collections.abc import Sequence
 
-import gymnasium as gym
-
-from gym_soarm.expert import EVALUATION_SEEDS, TASK_ENV_IDS, evaluate
+from gym_soarm.expert import evaluate
+from gym_soarm.tasks import get_task, task_names, task_spellings
 
 
 def main(argv: Sequence[str] | None = None) -> None:
-    """Print the expert's success rate per task over the evaluation episodes."""
+    """Print the expert's success rate per task over its evaluation episodes."""
     parser = argparse.ArgumentParser(
-        description="Measure the scripted expert's success rate over 9 cells x 4 yaws x 3 seeds."
+        prog="python -m gym_soarm.expert",
+        description="Measure the scripted expert's success rate on each task: grid tasks "
+        "over 9 cells x 4 yaws x 3 seeds, the others over seeds 0-99.",
     )
-    parser.add_argument("--task", choices=[*TASK_ENV_IDS, "all"], default="all")
+    parser.add_argument(
+        "--task",
+        nargs="+",
+        choices=[*task_spellings(), "all"],
+        default=["all"],
+        metavar="TASK",
+        help=f"tasks to measure: {', '.join(task_names())}, or all (default)",
+    )
     parser.add_argument(
         "--seeds",
         type=int,
-        nargs="+",
-        default=list(EVALUATION_SEEDS),
-        help="reset seeds (default: %(default)s)",
+        default=None,
+        help="seeds per grid cell and yaw for grid tasks (default 3), episodes for the "
+        "others (default 100)",
     )
     parser.add_argument("--verbose", action="store_true", help="print every failed episode")
     args = parser.parse_args(argv)
-    tasks = list(TASK_ENV_IDS) if args.task == "all" else [args.task]
-    for task in tasks:
+    if args.seeds is not None and args.seeds < 1:
+        parser.error(f"--seeds must be >= 1; got {args.seeds}")
+    names = task_names() if "all" in args.task else [get_task(t).name for t in args.task]
+    for name in dict.fromkeys(names):
         started = time.perf_counter()
-        results = evaluate(task, args.seeds)
+        results = evaluate(name, args.seeds)
         elapsed = time.perf_counter() - started
         wins = sum(r.success for r in results)
         steps = sorted(r.steps for r in results if r.success)
-        limit = gym.spec(TASK_ENV_IDS[task]).max_episode_steps
-        spread = f"steps to success {steps[0]}-{steps[-1]} of {limit}" if steps else "no success"
+        limit = get_task(name).max_episode_steps
+        spread = (
+            f"steps to success {steps[0]}-{steps[-1]} (median {steps[len(steps) // 2]}) of {limit}"
+            if steps
+            else "no success"
+        )
         print(
-            f"{task}: {wins}/{len(results)} = {100.0 * wins / len(results):.1f} % success, "
-            f"{spread} ({elapsed:.1f} s)"
+            f"{name}: {wins}/{len(results)} = {100.0 * wins / len(results):.1f} % success, "
+            f"{spread} ({elapsed:.1f} s)",
+            flush=True,
         )
         if args.verbose:
             for r in results:
                 if not r.success:
-                    print(
-                        f"  failed: cell {r.cell} yaw {r.yaw_deg:g} seed {r.seed} ({r.steps} steps)"
-                    )
+                    print(f"  failed: seed {r.seed} options {r.options} ({r.steps} steps)")
 
 
 if __name__ == "__main__":

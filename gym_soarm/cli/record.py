@@ -1,6 +1,6 @@
 """``python -m gym_soarm.record``: record scripted-expert demonstrations as a LeRobotDataset.
 
-The recording itself is :func:`gym_soarm.record.record`; this module parses the command
+The recording itself is :func:`gym_soarm.data.record.record`; this module parses the command
 line and reports on the terminal.
 """
 
@@ -12,15 +12,15 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from gym_soarm import constants
-from gym_soarm.record import (
+from gym_soarm.data.record import (
     CAMERA_CONFIG_CHOICES,
     KEEP_CHOICES,
-    TASK_NAMES,
     default_root,
-    parse_size,
     record,
 )
+from gym_soarm.tasks import task_names, task_spellings
 from gym_soarm.units import UNITS
+from gym_soarm.validation import parse_size
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -28,7 +28,13 @@ def build_parser() -> argparse.ArgumentParser:
         prog="python -m gym_soarm.record",
         description="Record scripted-expert demonstrations of gym_soarm as a LeRobotDataset v3.0.",
     )
-    parser.add_argument("--task", choices=TASK_NAMES, default="LiftCube-v0")
+    parser.add_argument(
+        "--task",
+        choices=task_spellings(),
+        default="LiftCube-v0",
+        metavar="TASK",
+        help=f"a task: {', '.join(task_names())} (default LiftCube-v0)",
+    )
     parser.add_argument("--episodes", type=int, default=10, help="episodes to keep (default 10)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the first attempt")
     parser.add_argument(

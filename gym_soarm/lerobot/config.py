@@ -10,24 +10,23 @@ from lerobot.envs.configs import EnvConfig
 
 import gym_soarm  # noqa: F401  (registers gym_soarm/<task> wherever this config is unpickled)
 from gym_soarm import constants
-from gym_soarm.env import resolve_camera_config
+from gym_soarm.tasks import get_task, task_names
 from gym_soarm.units import UNITS, check_wrist_roll_offset
+from gym_soarm.validation import parse_cameras
 
 ACTION = "action"
 OBS_STATE = "observation.state"
 OBS_ENV_STATE = "observation.environment_state"
 OBS_IMAGES = "observation.images"
-ENVIRONMENT_STATE_SIZE = 13
 OBS_TYPES: tuple[str, ...] = ("pixels_agent_pos", "environment_state_agent_pos", "pixels")
-TASKS: tuple[str, ...] = ("PickAndPlaceCube-v0", "LiftCube-v0")
 
 
-def parse_cameras(camera_config: str) -> tuple[str, ...]:
-    """Camera names of a camera config or of comma-separated names (ValueError if bad)."""
-    if camera_config in constants.CAMERA_CONFIGS:
-        return resolve_camera_config(camera_config)
-    names = [name.strip() for name in camera_config.split(",") if name.strip()]
-    return resolve_camera_config(names)
+def check_task(task: object) -> str:
+    """The registered name of ``task`` (a name, an alias or a gym id); ValueError if unknown."""
+    try:
+        return get_task(task).name
+    except ValueError:
+        raise ValueError(f"task must be one of {', '.join(task_names())}; got {task!r}.") from None
 
 
 @EnvConfig.register_subclass("soarm")
@@ -38,13 +37,13 @@ class SoArmEnvConfig(EnvConfig):
     The gym id is ``gym_soarm/<task>``. Observations reach policies as
     ``observation.state`` (the six joints, in ``units``), ``observation.images.<camera>``
     per camera and, for ``obs_type="environment_state_agent_pos"``,
-    ``observation.environment_state`` (13 values). ``obs_type="pixels"`` gives policies
-    the cameras only.
+    ``observation.environment_state`` (the task's layout, read from the task itself:
+    ``env.unwrapped.state_layout``). ``obs_type="pixels"`` gives policies the cameras only.
 
     Attributes:
-        task: ``"PickAndPlaceCube-v0"`` or ``"LiftCube-v0"``.
+        task: a registered task (``gym_soarm.task_names()``), e.g. ``"LiftCube-v0"``.
         fps: control rate (the environment steps at 50 Hz).
-        episode_length: step limit; ``None`` keeps the registered one (400 / 250).
+        episode_length: step limit; ``None`` keeps the task's registered one.
         obs_type: ``"pixels_agent_pos"``, ``"environment_state_agent_pos"`` or ``"pixels"``.
         camera_config: ``"front_only"``, ``"front_wrist"``, ``"all"`` or comma-separated
             camera names (``front_camera,wrist_camera``).
@@ -73,8 +72,7 @@ class SoArmEnvConfig(EnvConfig):
     features_map: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if self.task not in TASKS:
-            raise ValueError(f"task must be one of {', '.join(TASKS)}; got {self.task!r}.")
+        self.task = check_task(self.task)
         if self.obs_type not in OBS_TYPES:
             raise ValueError(
                 f"obs_type must be one of {', '.join(OBS_TYPES)}; got {self.obs_type!r}."
@@ -92,8 +90,9 @@ class SoArmEnvConfig(EnvConfig):
             features["agent_pos"] = PolicyFeature(type=FeatureType.STATE, shape=(n_joints,))
             features_map["agent_pos"] = OBS_STATE
         if self.obs_type == "environment_state_agent_pos":
+            layout = get_task(self.task).make_task().state_layout
             features["environment_state"] = PolicyFeature(
-                type=FeatureType.ENV, shape=(ENVIRONMENT_STATE_SIZE,)
+                type=FeatureType.ENV, shape=(sum(size for _, size in layout),)
             )
             features_map["environment_state"] = OBS_ENV_STATE
         else:

@@ -30,11 +30,12 @@ from lerobot.robots.config import RobotConfig
 from lerobot.robots.robot import Robot
 from lerobot.utils.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError
 
-from gym_soarm import ENV_IDS, constants
-from gym_soarm.env import SoArmEnv, _check_choice, _check_image_size
-from gym_soarm.lerobot.config import TASKS, parse_cameras
-from gym_soarm.rendering import RENDER_QUALITIES
+from gym_soarm import constants
+from gym_soarm.env import SoArmEnv
+from gym_soarm.lerobot.config import check_task
+from gym_soarm.render.backend import RENDER_QUALITIES
 from gym_soarm.units import FEATURE_NAMES, LEROBOT, UNITS, check_wrist_roll_offset
+from gym_soarm.validation import check_choice, check_image_size, parse_cameras
 
 logger = logging.getLogger(__name__)
 
@@ -48,7 +49,7 @@ class SimSoArmFollowerConfig(RobotConfig):
     """The simulated SO-101 follower (``--robot.type=sim_soarm_follower``).
 
     Attributes:
-        task: the scene's task, ``"PickAndPlaceCube-v0"`` or ``"LiftCube-v0"``.
+        task: the scene's task, a registered name such as ``"PickAndPlaceCube-v0"``.
         camera_config: ``"front_wrist"``, ``"front_only"``, ``"all"``, comma-separated
             camera names, or ``"none"`` (joint positions only).
         observation_height: image height in pixels.
@@ -75,8 +76,7 @@ class SimSoArmFollowerConfig(RobotConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if self.task not in TASKS:
-            raise ValueError(f"task must be one of {', '.join(TASKS)}; got {self.task!r}.")
+        self.task = check_task(self.task)
         if self.units not in UNITS:
             raise ValueError(f"units must be one of {', '.join(UNITS)}; got {self.units!r}.")
         self.wrist_roll_offset_deg = check_wrist_roll_offset(self.units, self.wrist_roll_offset_deg)
@@ -89,9 +89,9 @@ class SimSoArmFollowerConfig(RobotConfig):
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
             raise ValueError(f"seed must be None or an int >= 0; got {seed!r}.")
         # The environment's own checks, so that a bad value fails here, not at connect.
-        _check_choice("render_quality", self.render_quality, RENDER_QUALITIES)
-        _check_image_size("observation_height", self.observation_height)
-        _check_image_size("observation_width", self.observation_width)
+        check_choice("render_quality", self.render_quality, RENDER_QUALITIES)
+        check_image_size("observation_height", self.observation_height)
+        check_image_size("observation_width", self.observation_width)
         self.cameras_in_use()  # a bad camera_config fails here, not at connect
 
     def cameras_in_use(self) -> tuple[str, ...]:
@@ -146,7 +146,7 @@ class SimSoArmFollower(Robot):
         # SoArmEnv itself, not gym.make: a teleoperation session has no step limit. Its
         # steps render nothing; get_observation renders the cameras, once per call.
         env = SoArmEnv(
-            task=ENV_IDS[f"gym_soarm/{config.task}"][0],
+            task=config.task,
             obs_type="environment_state_agent_pos",
             observation_height=config.observation_height,
             observation_width=config.observation_width,

@@ -33,309 +33,46 @@ starts where the previous episode's frames end, on a frame boundary.
 
 from __future__ import annotations
 
-import contextlib
 import json
-import math
 import os
 import shutil
-import signal
-import subprocess
-import threading
 import warnings
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-CODEBASE_VERSION = "v3.0"
-CHUNKS_SIZE = 1000
-DATA_FILES_SIZE_MB = 100
-VIDEO_FILES_SIZE_MB = 200
-QUANTILES: dict[str, float] = {"q01": 0.01, "q10": 0.10, "q50": 0.50, "q90": 0.90, "q99": 0.99}
-STAT_NAMES: tuple[str, ...] = ("min", "max", "mean", "std", "count", *QUANTILES)
-
-INFO_PATH = "meta/info.json"
-STATS_PATH = "meta/stats.json"
-TASKS_PATH = "meta/tasks.parquet"
-CHUNK_FILE = "chunk-{chunk_index:03d}/file-{file_index:03d}"
-EPISODES_PATH = "meta/episodes/" + CHUNK_FILE + ".parquet"
-DATA_PATH = "data/" + CHUNK_FILE + ".parquet"
-VIDEO_PATH = "videos/{video_key}/" + CHUNK_FILE + ".mp4"
-_SCRATCH_DIR = ".writer-scratch"
-
-NUMERIC_DTYPES: tuple[str, ...] = ("float32", "float64", "int32", "int64", "bool")
-VIDEO_DTYPE = "video"
-AUTO_FEATURES: dict[str, str] = {
-    "timestamp": "float32",
-    "frame_index": "int64",
-    "episode_index": "int64",
-    "index": "int64",
-    "task_index": "int64",
-}
-"""Columns every dataset has; the writer fills them, frames must not carry them."""
-
-# Image statistics use every frame, subsampled in space to about this many pixels a side.
-_STATS_IMAGE_SIDE = 150
-
-
-def _require_pyarrow() -> Any:
-    try:
-        import pyarrow
-        import pyarrow.parquet
-    except ImportError as exc:
-        raise ImportError(
-            "Writing LeRobot datasets needs pyarrow: pip install 'gym-soarm[dataset]'"
-        ) from exc
-    return pyarrow
-
-
-@dataclass(frozen=True)
-class Feature:
-    """One declared feature of a dataset.
-
-    Attributes:
-        key: the column or video name, e.g. ``"observation.state"``.
-        dtype: one of :data:`NUMERIC_DTYPES` or ``"video"``.
-        shape: ``(n,)`` for numbers, ``(height, width, 3)`` for videos.
-        names: names of the ``n`` values, or ``None``.
-    """
-
-    key: str
-    dtype: str
-    shape: tuple[int, ...]
-    names: tuple[str, ...] | None
-
-    @property
-    def is_video(self) -> bool:
-        return self.dtype == VIDEO_DTYPE
-
-    @property
-    def size(self) -> int:
-        return self.shape[0]
-
-
-def _parse_features(features: Any) -> dict[str, Feature]:
-    if not isinstance(features, Mapping) or not features:
-        raise ValueError(
-            "features must be a non-empty dict {key: {'dtype': ..., 'shape': ..., 'names': ...}}; "
-            f"got {features!r}."
-        )
-    parsed: dict[str, Feature] = {}
-    for key, spec in features.items():
-        if not isinstance(key, str) or not key or "/" in key:
-            raise ValueError(f"feature keys must be non-empty strings without '/'; got {key!r}.")
-        if key in AUTO_FEATURES or key == "task":
-            raise ValueError(
-                f"feature {key!r} is written by the writer itself; remove it from features."
-            )
-        if not isinstance(spec, Mapping) or "dtype" not in spec or "shape" not in spec:
-            raise ValueError(
-                f"feature {key!r} must be a dict with 'dtype' and 'shape' (and optional 'names'); "
-                f"got {spec!r}."
-            )
-        dtype, names = spec["dtype"], spec.get("names")
-        try:
-            shape = tuple(int(n) for n in spec["shape"])
-        except (TypeError, ValueError):
-            raise ValueError(
-                f"feature {key!r} has shape {spec['shape']!r}; expected ints."
-            ) from None
-        if dtype == VIDEO_DTYPE:
-            if len(shape) != 3 or shape[2] != 3 or min(shape) <= 0:
-                raise ValueError(
-                    f"video feature {key!r} must have shape (height, width, 3); got {shape}."
-                )
-            if shape[0] % 2 or shape[1] % 2:
-                raise ValueError(
-                    f"video feature {key!r} has shape {shape}; H.264 yuv420p needs an even "
-                    "height and width."
-                )
-            names = ("height", "width", "channels")
-        elif dtype in NUMERIC_DTYPES:
-            if len(shape) != 1 or shape[0] <= 0:
-                raise ValueError(
-                    f"numeric feature {key!r} must have a 1-D shape (n,); got {shape}."
-                )
-            if names is not None:
-                names = tuple(str(n) for n in names)
-                if len(names) != shape[0]:
-                    raise ValueError(
-                        f"feature {key!r} has {len(names)} names for shape {shape}; give one "
-                        "name per value or names=None."
-                    )
-        else:
-            raise ValueError(
-                f"feature {key!r} has dtype {dtype!r}; expected one of "
-                f"{', '.join(repr(d) for d in (*NUMERIC_DTYPES, VIDEO_DTYPE))}."
-            )
-        parsed[key] = Feature(key, dtype, shape, names)
-    return parsed
-
-
-def _check_root(root: Path, overwrite: bool) -> None:
-    if root.exists() and not root.is_dir():
-        raise FileExistsError(
-            f"root {str(root)!r} exists and is not a folder; choose another root."
-        )
-    if root.is_dir() and any(root.iterdir()):
-        if not overwrite:
-            raise FileExistsError(
-                f"root {str(root)!r} already exists and is not empty; choose a new folder or "
-                "pass overwrite=True (--overwrite) to replace the dataset in it."
-            )
-        if not (root / INFO_PATH).is_file():
-            raise ValueError(
-                f"root {str(root)!r} is not empty and holds no {INFO_PATH}; it does not look like "
-                "a dataset, so it is not deleted even with overwrite=True. Choose another root."
-            )
-        shutil.rmtree(root)
-
-
-@contextlib.contextmanager
-def _deferred_interrupt() -> Iterator[None]:
-    """Hold Ctrl-C back until the block ends, so files are never left half-committed."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    received: list[Any] = []
-    previous = signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-        if received:
-            raise KeyboardInterrupt
-
-
-# --- statistics ----------------------------------------------------------------------------
-def numeric_stats(values: np.ndarray) -> dict[str, np.ndarray]:
-    """Statistics of a (frames, n) array over frames: min, max, mean, std, count, q01..q99.
-
-    Quantiles use numpy's default linear interpolation; ``std`` is the population value.
-    """
-    values = np.asarray(values, dtype=np.float64)
-    stats = {
-        "min": values.min(axis=0),
-        "max": values.max(axis=0),
-        "mean": values.mean(axis=0),
-        "std": values.std(axis=0),
-        "count": np.array([len(values)]),
-    }
-    quantiles = np.quantile(values, list(QUANTILES.values()), axis=0)
-    stats.update(zip(QUANTILES, quantiles, strict=True))
-    return stats
-
-
-def _histogram_quantile(cumulative: np.ndarray, q: float) -> float:
-    # The same value as np.quantile(values, q) for the values counted by the histogram.
-    total = int(cumulative[-1])
-    position = q * (total - 1)
-    below = math.floor(position)
-    above = min(below + 1, total - 1)
-    low = int(np.searchsorted(cumulative, below, side="right"))
-    high = int(np.searchsorted(cumulative, above, side="right"))
-    return low + (position - below) * (high - low)
-
-
-def histogram_image_stats(histogram: np.ndarray, frames: int) -> dict[str, np.ndarray]:
-    """Image statistics in [0, 1] per channel, shape (3, 1, 1), from uint8 histograms.
-
-    Args:
-        histogram: (3, 256) pixel counts per channel and value.
-        frames: the number of frames counted, reported as ``count``.
-    """
-    levels = np.arange(256, dtype=np.float64)
-    stats: dict[str, list[float]] = {name: [] for name in STAT_NAMES if name != "count"}
-    for counts in histogram:
-        total = counts.sum()
-        present = np.flatnonzero(counts)
-        mean = float(counts @ levels) / total
-        stats["min"].append(float(present[0]))
-        stats["max"].append(float(present[-1]))
-        stats["mean"].append(mean)
-        stats["std"].append(math.sqrt(float(counts @ (levels - mean) ** 2) / total))
-        cumulative = np.cumsum(counts)
-        for name, q in QUANTILES.items():
-            stats[name].append(_histogram_quantile(cumulative, q))
-    result = {name: np.array(v).reshape(3, 1, 1) / 255.0 for name, v in stats.items()}
-    result["count"] = np.array([frames])
-    return result
-
-
-def _image_histogram(frame: np.ndarray) -> np.ndarray:
-    stride = max(1, math.ceil(max(frame.shape[:2]) / _STATS_IMAGE_SIDE))
-    sample = frame[::stride, ::stride].reshape(-1, 3)
-    return np.stack([np.bincount(sample[:, c], minlength=256) for c in range(3)])
-
-
-def _stats_to_json(stats: Mapping[str, np.ndarray]) -> dict[str, list]:
-    return {
-        name: (
-            np.asarray(value).astype(np.int64) if name == "count" else np.asarray(value, np.float64)
-        ).tolist()
-        for name, value in stats.items()
-    }
-
-
-# --- video -----------------------------------------------------------------------------------
-class _SegmentEncoder:
-    """Streams one episode of one camera into an H.264 mp4 through ffmpeg."""
-
-    def __init__(self, path: Path, height: int, width: int, fps: int, crf: int, gop: int) -> None:
-        import imageio_ffmpeg
-
-        self.path = path
-        self._writer = imageio_ffmpeg.write_frames(
-            str(path),
-            (width, height),
-            fps=fps,
-            codec="libx264",
-            pix_fmt_in="rgb24",
-            pix_fmt_out="yuv420p",
-            quality=None,
-            macro_block_size=1,
-            ffmpeg_log_level="error",
-            output_params=["-crf", str(crf), "-g", str(gop), "-preset", "veryfast"],
-        )
-        self._writer.send(None)
-
-    def add(self, frame: np.ndarray) -> None:
-        self._writer.send(np.ascontiguousarray(frame))
-
-    def close(self) -> None:
-        self._writer.close()
-
-
-def _concatenate_videos(first: Path, second: Path, out: Path, scratch: Path) -> None:
-    import imageio_ffmpeg
-
-    listing = scratch / "concat.txt"
-    listing.write_text(f"file '{first.resolve()}'\nfile '{second.resolve()}'\n")
-    command = [
-        imageio_ffmpeg.get_ffmpeg_exe(),
-        "-y",
-        "-loglevel",
-        "error",
-        "-f",
-        "concat",
-        "-safe",
-        "0",
-        "-i",
-        str(listing),
-        "-c",
-        "copy",
-        "-movflags",
-        "+faststart",
-        str(out),
-    ]
-    # A session of its own keeps a terminal's Ctrl-C away from ffmpeg; the writer decides.
-    result = subprocess.run(
-        command, capture_output=True, text=True, check=False, start_new_session=True
-    )
-    if result.returncode != 0:
-        raise RuntimeError(f"ffmpeg could not join {first} and {second}: {result.stderr.strip()}")
+from gym_soarm.data.format import (
+    AUTO_FEATURES,
+    CHUNKS_SIZE,
+    CODEBASE_VERSION,
+    DATA_FILES_SIZE_MB,
+    DATA_PATH,
+    EPISODES_PATH,
+    INFO_PATH,
+    SCRATCH_DIR,
+    STATS_PATH,
+    TASKS_PATH,
+    VIDEO_FILES_SIZE_MB,
+    VIDEO_PATH,
+    Feature,
+    check_root,
+    deferred_interrupt,
+    parse_features,
+    require_pyarrow,
+)
+from gym_soarm.data.stats import (
+    histogram_image_stats,
+    image_histogram,
+    numeric_stats,
+    stats_to_json,
+)
+from gym_soarm.data.video_files import (
+    SegmentEncoder,
+    concatenate_videos,
+)
 
 
 # --- the writer ------------------------------------------------------------------------------
@@ -391,7 +128,7 @@ class LeRobotDatasetWriter:
         data_files_size_in_mb: float = DATA_FILES_SIZE_MB,
         video_files_size_in_mb: float = VIDEO_FILES_SIZE_MB,
     ) -> None:
-        self._pa = _require_pyarrow()
+        self._pa = require_pyarrow()
         if isinstance(fps, bool) or not isinstance(fps, (int, np.integer)) or fps <= 0:
             raise ValueError(f"fps must be a positive int (e.g. 50); got {fps!r}.")
         for name, value in (("video_crf", video_crf), ("video_gop", video_gop)):
@@ -405,9 +142,9 @@ class LeRobotDatasetWriter:
                 raise ValueError(f"{name} must be a positive number of megabytes; got {value!r}.")
         if robot_type is not None and not isinstance(robot_type, str):
             raise ValueError(f"robot_type must be a string or None; got {robot_type!r}.")
-        self.features = _parse_features(features)
+        self.features = parse_features(features)
         self.root = Path(root)
-        _check_root(self.root, overwrite)
+        check_root(self.root, overwrite)
 
         self.fps = int(fps)
         self.robot_type = robot_type
@@ -415,7 +152,7 @@ class LeRobotDatasetWriter:
         self._data_mb, self._video_mb = data_files_size_in_mb, video_files_size_in_mb
         self._video_keys = [k for k, f in self.features.items() if f.is_video]
         self._numeric_keys = [k for k, f in self.features.items() if not f.is_video]
-        self._scratch = self.root / _SCRATCH_DIR
+        self._scratch = self.root / SCRATCH_DIR
         self._scratch.mkdir(parents=True)
         self._finalized = False
 
@@ -508,7 +245,7 @@ class LeRobotDatasetWriter:
             if key not in self._encoders:
                 self._encoders[key] = self._open_encoder(key)
             self._encoders[key].add(image)
-            self._buffer_histograms[key] += _image_histogram(image)
+            self._buffer_histograms[key] += image_histogram(image)
         self._buffer_tasks.append(task)
 
     def _check_value(self, feature: Feature, value: Any) -> np.ndarray:
@@ -617,7 +354,7 @@ class LeRobotDatasetWriter:
             segment = self._segment_path(key)
             if pointer.frames:
                 joined = self._scratch / f"{_safe(key)}-joined.mp4"
-                _concatenate_videos(video_path, segment, joined, self._scratch)
+                concatenate_videos(video_path, segment, joined, self._scratch)
                 segment.unlink()
                 staged.append((joined, video_path))
             else:
@@ -627,12 +364,12 @@ class LeRobotDatasetWriter:
             row[f"videos/{key}/from_timestamp"] = pointer.frames / self.fps
             row[f"videos/{key}/to_timestamp"] = (pointer.frames + length) / self.fps
         for key, feature_stats in stats.items():
-            for name, value in _stats_to_json(feature_stats).items():
+            for name, value in stats_to_json(feature_stats).items():
                 row[f"stats/{key}/{name}"] = value
         row["meta/episodes/chunk_index"] = 0
         row["meta/episodes/file_index"] = 0
 
-        with _deferred_interrupt():
+        with deferred_interrupt():
             for source, target in staged:
                 target.parent.mkdir(parents=True, exist_ok=True)
                 os.replace(source, target)
@@ -681,16 +418,16 @@ class LeRobotDatasetWriter:
         self._buffer: dict[str, list[np.ndarray]] = {key: [] for key in self._numeric_keys}
         self._buffer_tasks: list[str] = []
         self._buffer_histograms = {key: np.zeros((3, 256), np.int64) for key in self._video_keys}
-        self._encoders: dict[str, _SegmentEncoder] = {}
+        self._encoders: dict[str, SegmentEncoder] = {}
 
     def _close_encoders(self) -> None:
         for encoder in getattr(self, "_encoders", {}).values():
             encoder.close()
         self._encoders = {}
 
-    def _open_encoder(self, key: str) -> _SegmentEncoder:
+    def _open_encoder(self, key: str) -> SegmentEncoder:
         height, width, _ = self.features[key].shape
-        return _SegmentEncoder(
+        return SegmentEncoder(
             self._segment_path(key), height, width, self.fps, self._crf, self._gop
         )
 
@@ -809,9 +546,9 @@ class LeRobotDatasetWriter:
                 )
             else:
                 feature_stats = numeric_stats(np.concatenate(self._numeric_history[key]))
-            stats[key] = _stats_to_json(feature_stats)
+            stats[key] = stats_to_json(feature_stats)
         for key in AUTO_FEATURES:
-            stats[key] = _stats_to_json(numeric_stats(np.concatenate(self._numeric_history[key])))
+            stats[key] = stats_to_json(numeric_stats(np.concatenate(self._numeric_history[key])))
         return stats
 
     def _write_metadata(self) -> None:

@@ -21,7 +21,7 @@ measuring render time and the difference to the provider's meshes at the front a
 wrist cameras. Physics never sees these meshes: the visual geoms have no mass and no
 collisions.
 
-The results are cached in the user cache directory (see :mod:`gym_soarm.cache`),
+The results are cached in the user cache directory (see :mod:`gym_soarm.sim.cache`),
 keyed by each source file's SHA-256 and the settings, so the work is done once per
 machine.
 """
@@ -35,7 +35,7 @@ import logging
 
 import numpy as np
 
-from gym_soarm import cache, meshes
+from gym_soarm.sim import cache, meshes
 
 logger = logging.getLogger(__name__)
 
@@ -185,7 +185,7 @@ def quality_meshes(quality: str = "fast") -> dict[str, bytes]:
 
     Raises:
         ValueError: ``quality`` is not one of :data:`MESH_SETTINGS`.
-        gym_soarm.meshes.MeshError: a provider mesh is missing or changed.
+        gym_soarm.sim.meshes.MeshError: a provider mesh is missing or changed.
     """
     tag = settings_tag(quality)
     sources = meshes.load_meshes()  # checks every SHA-256

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.display import require_windows
+from gym_soarm.render.display import require_windows
 
 if TYPE_CHECKING:
     from gym_soarm.env import SoArmEnv

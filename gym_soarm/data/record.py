@@ -1,0 +1,306 @@
+"""Record the scripted expert as a LeRobotDataset v3.0, without LeRobot or torch.
+
+Run ``python -m gym_soarm.record --help``. For example, 50 lift demonstrations with the
+front and wrist cameras at 480 x 640, in LeRobot's follower units::
+
+    python -m gym_soarm.record --task LiftCube-v0 --episodes 50 --seed 0 \\
+        --root datasets/soarm_lift --repo-id local/soarm_lift
+
+Each frame holds the observation before a step and the action sent at that step:
+``observation.state`` (the six joints in the chosen units, named ``shoulder_pan.pos`` ...
+``gripper.pos``), ``action`` (the expert's six joint targets, same units), one
+``observation.images.<camera>`` video per camera (or ``observation.environment_state``
+when recording without cameras), and ``next.reward``, ``next.success``, ``next.done`` of
+the step. Each episode's task sentence is the environment's ``task_description`` after its reset
+(the instruction tasks with a choice draw at reset).
+
+With ``--dart-noise SIGMA`` the arm executes the expert's action plus Gaussian noise of
+standard deviation SIGMA radians on every joint, while the dataset keeps the expert's
+clean action as the label (DART): the demonstrations then visit the states a slightly
+imperfect policy reaches, and show how the expert recovers from them.
+
+The expert computes its actions in radians from the simulation state; they are
+converted to the recording's units with :mod:`gym_soarm.units`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from gym_soarm import constants
+from gym_soarm.data import LeRobotDatasetWriter
+from gym_soarm.tasks import get_task
+from gym_soarm.units import FEATURE_NAMES, joint_units
+from gym_soarm.validation import parse_size, resolve_camera_config
+
+CAMERA_CONFIG_NONE = "none"
+CAMERA_CONFIG_CHOICES: tuple[str, ...] = (*constants.CAMERA_CONFIGS, CAMERA_CONFIG_NONE)
+KEEP_CHOICES: tuple[str, ...] = ("success", "all")
+FPS = constants.RENDER_FPS
+
+
+def default_root(repo_id: str) -> Path:
+    """Where LeRobot looks for ``repo_id`` when no root is given (``$HF_LEROBOT_HOME/<repo_id>``)."""
+    home = os.environ.get("HF_LEROBOT_HOME")
+    if home is None:
+        hf_home = os.environ.get("HF_HOME")
+        if hf_home is None:
+            cache = os.environ.get("XDG_CACHE_HOME", os.path.join("~", ".cache"))
+            hf_home = os.path.join(cache, "huggingface")
+        home = os.path.join(hf_home, "lerobot")
+    return Path(home).expanduser() / repo_id
+
+
+@dataclasses.dataclass(frozen=True)
+class RecordSummary:
+    """What a recording produced."""
+
+    root: Path
+    episodes: int
+    frames: int
+    attempts: int
+    successes: int
+    seconds: float
+    bytes_on_disk: int
+    interrupted: bool = False
+
+    @property
+    def success_rate(self) -> float:
+        """Successful attempts / attempts (every attempt, kept or not)."""
+        return self.successes / self.attempts if self.attempts else 0.0
+
+    @property
+    def frames_per_second(self) -> float:
+        return self.frames / self.seconds if self.seconds > 0 else 0.0
+
+    def text(self) -> str:
+        mb = self.bytes_on_disk / 1024**2
+        per_episode = mb / self.episodes if self.episodes else 0.0
+        state = "interrupted: " if self.interrupted else ""
+        return (
+            f"{state}{self.episodes} episodes, {self.frames} frames, expert success "
+            f"{self.successes}/{self.attempts} = {100 * self.success_rate:.1f} %, "
+            f"{mb:.1f} MB on disk ({per_episode:.2f} MB/episode), {self.seconds:.1f} s "
+            f"({self.frames_per_second:.0f} frames/s) -> {self.root}"
+        )
+
+
+def dataset_features(
+    cameras: Sequence[str],
+    height: int,
+    width: int,
+    environment_state: Sequence[str] | None,
+) -> dict[str, dict[str, Any]]:
+    """The LeRobot features of a gym_soarm recording.
+
+    Args:
+        cameras: one video feature per camera.
+        height: image height.
+        width: image width.
+        environment_state: the names of ``observation.environment_state``'s values
+            (the env's ``state_names``), or None to record no environment state.
+    """
+    names = list(FEATURE_NAMES)
+    features: dict[str, dict[str, Any]] = {
+        "action": {"dtype": "float32", "shape": (len(names),), "names": names},
+        "observation.state": {"dtype": "float32", "shape": (len(names),), "names": names},
+    }
+    for camera in cameras:
+        features[f"observation.images.{camera}"] = {
+            "dtype": "video",
+            "shape": (height, width, 3),
+            "names": ["height", "width", "channels"],
+        }
+    if environment_state is not None:
+        features["observation.environment_state"] = {
+            "dtype": "float32",
+            "shape": (len(environment_state),),
+            "names": list(environment_state),
+        }
+    features["next.reward"] = {"dtype": "float32", "shape": (1,), "names": None}
+    features["next.success"] = {"dtype": "bool", "shape": (1,), "names": None}
+    features["next.done"] = {"dtype": "bool", "shape": (1,), "names": None}
+    return features
+
+
+def _check_int(name: str, value: Any, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ValueError(f"{name} must be an int >= {minimum}; got {value!r}.")
+    return int(value)
+
+
+def record(
+    root: str | os.PathLike[str],
+    task: str = "LiftCube-v0",
+    episodes: int = 10,
+    seed: int = 0,
+    camera_config: str | Sequence[str] = "front_wrist",
+    size: tuple[int, int] = (480, 640),
+    units: str = "lerobot",
+    wrist_roll_offset_deg: float = 0.0,
+    keep: str = "success",
+    dart_noise: float = 0.0,
+    overwrite: bool = False,
+    max_attempts: int | None = None,
+    progress: bool = False,
+) -> RecordSummary:
+    """Record ``episodes`` episodes of the scripted expert into a dataset folder.
+
+    Attempt ``k`` resets the environment with ``seed + k``, so the same arguments give
+    the same actions and states.
+
+    Args:
+        root: the dataset folder (new or empty, or an old dataset with ``overwrite``).
+        task: a registered task's name (see :func:`gym_soarm.tasks.task_names`) or an
+            alias (``"lift"``).
+        episodes: episodes to keep in the dataset.
+        seed: seed of the first attempt.
+        camera_config: ``"front_only"``, ``"front_wrist"``, ``"all"``, camera names, or
+            ``"none"`` (no video; ``observation.environment_state`` is recorded instead).
+        size: image (height, width), both even.
+        units: joint units of states and actions, one of :data:`gym_soarm.units.UNITS`.
+        wrist_roll_offset_deg: with LeRobot units, the real arm's wrist_roll reading
+            (degrees) when the model's wrist_roll is at 0 rad (see :mod:`gym_soarm.units`).
+        keep: ``"success"`` keeps only successful episodes (failed attempts are dropped
+            and another attempt is made); ``"all"`` keeps every attempt.
+        dart_noise: standard deviation (rad) of the Gaussian noise added to the executed
+            action on every joint; the recorded action stays the expert's. 0 disables it.
+        overwrite: replace an existing dataset in ``root``.
+        max_attempts: give up after this many attempts (default ``3 * episodes + 10``).
+        progress: show a progress bar on stderr.
+
+    Raises:
+        ValueError: a bad argument; nothing is written then.
+        TypeError: ``wrist_roll_offset_deg`` is not a number; nothing is written then.
+    """
+    from gym_soarm.expert import make_expert
+
+    spec = get_task(task)
+    episodes = _check_int("episodes", episodes, 1)
+    seed = _check_int("seed", seed, 0)
+    conversion = joint_units(units, wrist_roll_offset_deg)
+    if keep not in KEEP_CHOICES:
+        raise ValueError(f"keep must be one of {', '.join(KEEP_CHOICES)}; got {keep!r}.")
+    if isinstance(dart_noise, bool) or not isinstance(dart_noise, (int, float)):
+        raise ValueError(f"dart_noise must be a number of radians >= 0; got {dart_noise!r}.")
+    if not np.isfinite(dart_noise) or dart_noise < 0:
+        raise ValueError(f"dart_noise must be a finite number of radians >= 0; got {dart_noise!r}.")
+    height, width = parse_size(f"{size[0]}x{size[1]}")
+    state_only = camera_config == CAMERA_CONFIG_NONE
+    cameras = () if state_only else resolve_camera_config(camera_config)
+    if max_attempts is None:
+        max_attempts = 3 * episodes + 10
+    max_attempts = _check_int("max_attempts", max_attempts, episodes)
+
+    env_kwargs: dict[str, Any] = {
+        "units": units,
+        "wrist_roll_offset_deg": wrist_roll_offset_deg,
+    }
+    if state_only:
+        env_kwargs["obs_type"] = "environment_state_agent_pos"
+    else:
+        env_kwargs.update(
+            obs_type="pixels_agent_pos",
+            camera_config=list(cameras),
+            observation_height=height,
+            observation_width=width,
+        )
+    started = time.perf_counter()
+    env = gym.make(spec.env_id, **env_kwargs)
+    try:
+        state_names = env.unwrapped.state_names if state_only else None
+        writer = LeRobotDatasetWriter.create(
+            root,
+            FPS,
+            dataset_features(cameras, height, width, environment_state=state_names),
+            robot_type="gym_soarm" if units == "radians" else "so101_follower",
+            overwrite=overwrite,
+        )
+    except BaseException:
+        env.close()
+        raise
+    kept = attempts = successes = 0
+    interrupted = False
+    bar = None
+    try:
+        expert = make_expert(env)
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=episodes, unit="episode", file=sys.stderr, dynamic_ncols=True)
+        while kept < episodes and attempts < max_attempts:
+            noise = np.random.default_rng([seed, attempts])
+            obs, info = env.reset(seed=seed + attempts)
+            expert.reset()
+            attempts += 1
+            done = False
+            while not done:
+                action_rad = expert.next_targets_radians()  # radians, whatever the units
+                executed_rad = action_rad
+                if dart_noise > 0:
+                    executed_rad = action_rad + noise.normal(0.0, dart_noise, action_rad.shape)
+                frame: dict[str, Any] = {
+                    "observation.state": obs["agent_pos"].astype(np.float32),
+                    "action": conversion.from_radians(action_rad).astype(np.float32),
+                    "task": env.unwrapped.task_description,
+                }
+                if state_only:
+                    frame["observation.environment_state"] = obs["environment_state"].astype(
+                        np.float32
+                    )
+                else:
+                    for camera in cameras:
+                        frame[f"observation.images.{camera}"] = obs["pixels"][camera]
+                obs, reward, terminated, truncated, info = env.step(
+                    conversion.from_radians(executed_rad)
+                )
+                done = terminated or truncated
+                frame["next.reward"] = np.array([reward], np.float32)
+                frame["next.success"] = np.array([info["is_success"]])
+                frame["next.done"] = np.array([done])
+                writer.add_frame(frame)
+            success = bool(info["is_success"])
+            successes += success
+            if success or keep == "all":
+                writer.save_episode()
+                kept += 1
+                if bar is not None:
+                    bar.update(1)
+            else:
+                writer.clear_episode_buffer()
+            if bar is not None:
+                bar.set_postfix(success=f"{successes}/{attempts}", frames=writer.num_frames)
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        if bar is not None:
+            bar.close()
+        env.close()
+        writer.finalize()
+    seconds = time.perf_counter() - started
+    size_bytes = sum(p.stat().st_size for p in Path(root).rglob("*") if p.is_file())
+    return RecordSummary(
+        root=Path(root),
+        episodes=writer.num_episodes,
+        frames=writer.num_frames,
+        attempts=attempts,
+        successes=successes,
+        seconds=seconds,
+        bytes_on_disk=size_bytes,
+        interrupted=interrupted,
+    )
+
+
+if __name__ == "__main__":
+    from gym_soarm.cli.record import main
+
+    sys.exit(main())

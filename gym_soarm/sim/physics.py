@@ -1,0 +1,414 @@
+"""The SO-101 scene's physics, answering questions in the robot's own words.
+
+Only this module turns names into indices: ids are looked up once, at construction,
+and every accessor returns a fresh array (never a view the next step overwrites).
+
+The accessors run several times per environment step, so they read MuJoCo's arrays
+directly (views cached at construction) rather than through dm_control's wrappers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+
+import mujoco
+import numpy as np
+from dm_control import mujoco as dm_mujoco
+from dm_control.mujoco.wrapper import core as dm_core
+from dm_control.rl import control
+
+from gym_soarm import constants
+from gym_soarm.sim import objects, scene
+
+logger = logging.getLogger(__name__)
+_WARNING_NAMES: tuple[str, ...] = tuple(mujoco.mjtWarning.__members__)
+_RK4 = int(mujoco.mjtIntegrator.mjINT_RK4)
+
+
+@dataclasses.dataclass(frozen=True)
+class _ObjectIndex:
+    """Ids and array views of one free object, looked up once."""
+
+    shape: str
+    size: tuple[float, ...]
+    geom: int
+    geoms: frozenset[int]
+    pos: np.ndarray
+    quat: np.ndarray
+    z_and_quat: np.ndarray
+    qpos: np.ndarray
+    qvel: np.ndarray
+    linvel: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class _FixtureIndex:
+    """Ids and array views of one fixture, looked up once."""
+
+    body: int
+    xpos: np.ndarray
+    geoms: frozenset[int]
+    qpos_adr: int
+
+
+class SoArmPhysics(dm_mujoco.Physics):
+    """Physics of the SO-101 on its table with one task's objects and fixtures.
+
+    The robot's accessors speak of joints, servos and the jaws; everything else is
+    asked for by the name it was declared with (``object_position("cube")``,
+    ``fixture_position("goal")``, ``touching("red_cube", "blue_cube")``).
+    """
+
+    layout: objects.Scene = objects.EMPTY_SCENE
+
+    @classmethod
+    def from_scene(
+        cls, layout: objects.Scene = objects.EMPTY_SCENE, visual: str = "fast", label: str = "scene"
+    ) -> SoArmPhysics:
+        """A new physics instance of the arena with ``layout``'s objects and fixtures.
+
+        The model is compiled once per process, scene and visual variant.
+
+        Args:
+            layout: the task's objects and fixtures.
+            visual: ``"fast"`` (simplified visual meshes) or ``"high"`` (full-detail
+                meshes). Both have the same physics; only rendering differs.
+            label: names the cached compiled model (the task's name).
+        """
+        physics = cls.from_model(dm_core.MjModel(scene.load_scene_model(layout, visual, label)))
+        physics.layout = layout
+        physics._index_layout()
+        return physics
+
+    def _reload_from_data(self, data):
+        super()._reload_from_data(data)
+        self._cache_ids()
+
+    def _cache_ids(self) -> None:
+        m = self.model.ptr
+        d = self.data.ptr
+        # MuJoCo's own structs and array views, valid for the life of this data.
+        self._mj_model = m
+        self._mj_data = d
+        self._mj_option = m.opt
+        self._qpos = d.qpos
+        self._qvel = d.qvel
+        self._qacc = d.qacc
+        self._ctrl = d.ctrl
+        self._site_xpos = d.site_xpos
+        self._site_xmat = d.site_xmat
+        self._sensordata = d.sensordata
+
+        def jid(name: str) -> int:
+            return mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+
+        self._arm_qpos_adr = np.array(
+            [m.jnt_qposadr[jid(n)] for n in constants.JOINT_NAMES], dtype=np.intp
+        )
+        self._arm_dof_adr = np.array(
+            [m.jnt_dofadr[jid(n)] for n in constants.JOINT_NAMES], dtype=np.intp
+        )
+        site = mujoco.mjtObj.mjOBJ_SITE
+        self._gripper_site = mujoco.mj_name2id(m, site, constants.GRIPPER_SITE)
+        self._grasp_site = mujoco.mj_name2id(m, site, constants.GRASP_SITE)
+        self._pad_geoms = tuple(
+            mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n) for n in constants.JAW_PAD_GEOMS
+        )
+        self._table_geoms = frozenset(
+            {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, constants.TABLE_GEOM)}
+        )
+        self._actuator_ids = np.array(
+            [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, n) for n in constants.JOINT_NAMES],
+            dtype=np.intp,
+        )
+        self._touch_adr = np.array(
+            [
+                m.sensor_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, n)]
+                for n in constants.JAW_TOUCH_SENSORS
+            ],
+            dtype=np.intp,
+        )
+        self._home_key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, constants.HOME_KEYFRAME)
+        self._gripper_xpos = self._site_xpos[self._gripper_site]
+        self._grasp_xpos = self._site_xpos[self._grasp_site]
+        self._index_layout()
+
+    def _index_layout(self) -> None:
+        """Look every declared object and fixture up by name, once."""
+        m = self._mj_model
+        self._objects: dict[str, _ObjectIndex] = {}
+        for item in self.layout.objects:
+            joint = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, item.name)
+            q, v = int(m.jnt_qposadr[joint]), int(m.jnt_dofadr[joint])
+            geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, item.name)
+            self._objects[item.name] = _ObjectIndex(
+                shape=item.shape,
+                size=tuple(item.size_m),
+                geom=geom,
+                geoms=frozenset({geom}),
+                pos=self._qpos[q : q + 3],
+                quat=self._qpos[q + 3 : q + 7],
+                z_and_quat=self._qpos[q + 2 : q + 7],
+                qpos=self._qpos[q : q + 7],
+                qvel=self._qvel[v : v + 6],
+                linvel=self._qvel[v : v + 3],
+            )
+        self._fixtures: dict[str, _FixtureIndex] = {}
+        for fixture in self.layout.fixtures:
+            body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, fixture.name)
+            site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, fixture.name)
+            joint = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, fixture.name)
+            geoms = frozenset(int(g) for g in np.flatnonzero(m.geom_bodyid == body))
+            self._fixtures[fixture.name] = _FixtureIndex(
+                body=body,
+                xpos=self._site_xpos[site],
+                geoms=geoms,
+                qpos_adr=int(m.jnt_qposadr[joint]) if joint >= 0 else -1,
+            )
+        self._geom_groups: dict[str, frozenset[int]] = {
+            "table": self._table_geoms,
+            **{name: index.geoms for name, index in self._objects.items()},
+            **{name: index.geoms for name, index in self._fixtures.items()},
+        }
+
+    # --- stepping --------------------------------------------------------------------
+    def step(self, nstep: int = 1) -> None:
+        """Advance the simulation by ``nstep`` physics steps.
+
+        Does what :meth:`dm_control.mujoco.Physics.step` does (with ``legacy_step``,
+        mj_step1 runs last so positions, sites and contacts match the new state; a new
+        MuJoCo warning raises :class:`dm_control.rl.control.PhysicsError`, or is logged
+        inside ``suppress_physics_errors()``), with less Python around the MuJoCo calls.
+        """
+        m, d = self._mj_model, self._mj_data
+        before = self._warnings.tolist()  # a list compares faster than the strided view
+        if not self.legacy_step:
+            mujoco.mj_step(m, d, nstep)
+        elif self._mj_option.integrator != _RK4:
+            mujoco.mj_step2(m, d)
+            if nstep > 1:
+                mujoco.mj_step(m, d, nstep - 1)
+            mujoco.mj_step1(m, d)
+        else:
+            mujoco.mj_step(m, d, nstep)
+            mujoco.mj_step1(m, d)
+        after = self._warnings.tolist()
+        if after != before:
+            self._report_new_warnings(before, after)
+
+    def _report_new_warnings(self, before: list[int], after: list[int]) -> None:
+        # mjtWarning also lists mjNWARNING, the count, which has no counter of its own.
+        names = [
+            name for name, old, new in zip(_WARNING_NAMES, before, after, strict=False) if new > old
+        ]
+        if not names:  # counters were cleared by a reset and none went up
+            return
+        message = f"Physics state is invalid. Warning(s) raised: {', '.join(names)}"
+        if self._warnings_cause_exception:
+            raise control.PhysicsError(message)
+        logger.warning(message)
+
+    # --- robot -------------------------------------------------------------------
+    def joint_angles(self) -> np.ndarray:
+        """The six joint positions in radians, in ``constants.JOINT_NAMES`` order."""
+        return self._qpos[self._arm_qpos_adr]
+
+    def joint_velocities(self) -> np.ndarray:
+        """The six joint velocities in rad/s."""
+        return self._qvel[self._arm_dof_adr]
+
+    def joint_targets(self) -> np.ndarray:
+        """The six servo targets (the last action) in radians."""
+        return self._ctrl[self._actuator_ids]
+
+    def set_joint_targets(self, targets: np.ndarray) -> None:
+        """Set the six servo targets in radians (no clipping here)."""
+        self._ctrl[self._actuator_ids] = targets
+
+    def set_joint_angles(self, angles: np.ndarray) -> None:
+        """Teleport the joints (used only inside a reset context)."""
+        self._qpos[self._arm_qpos_adr] = angles
+        self._qvel[self._arm_dof_adr] = 0.0
+
+    def control_range(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper servo target bounds in radians."""
+        rng = self.model.ptr.actuator_ctrlrange[self._actuator_ids]
+        return rng[:, 0].copy(), rng[:, 1].copy()
+
+    def joint_range(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper joint limits in radians."""
+        m = self.model.ptr
+        ids = [m.joint(n).id for n in constants.JOINT_NAMES]
+        rng = m.jnt_range[ids]
+        return rng[:, 0].copy(), rng[:, 1].copy()
+
+    def gripper_position(self) -> np.ndarray:
+        """World position (m) of the ``gripperframe`` site, the tool centre point."""
+        return self._gripper_xpos.copy()
+
+    def gripper_orientation(self) -> np.ndarray:
+        """World rotation matrix (3, 3) of the ``gripperframe`` site."""
+        return self._site_xmat[self._gripper_site].reshape(3, 3).copy()
+
+    def grasp_center(self) -> np.ndarray:
+        """World position (m) where a held object's centre sits, between the jaws."""
+        return self._grasp_xpos.copy()
+
+    def jaw_touch(self) -> np.ndarray:
+        """Normal force (N) sensed by the fixed and the moving jaw pad."""
+        return self._sensordata[self._touch_adr]
+
+    def _object(self, name: str) -> _ObjectIndex:
+        index = self._objects.get(name)
+        if index is None:
+            raise ValueError(
+                f"this scene has no object {name!r}; its objects are {list(self._objects)}."
+            )
+        return index
+
+    def _fixture(self, name: str) -> _FixtureIndex:
+        index = self._fixtures.get(name)
+        if index is None:
+            raise ValueError(
+                f"this scene has no fixture {name!r}; its fixtures are {list(self._fixtures)}."
+            )
+        return index
+
+    def jaw_contacts(self, name: str) -> tuple[bool, bool]:
+        """Whether the fixed and the moving jaw pad each touch object ``name``."""
+        d = self._mj_data
+        n = d.ncon
+        if n == 0:
+            return False, False
+        geom = self._object(name).geom
+        fixed_pad, moving_pad = self._pad_geoms
+        fixed = moving = False
+        # A plain loop: there are only a handful of contacts, and numpy costs more.
+        for geom1, geom2 in d.contact.geom[:n].tolist():
+            other = geom2 if geom1 == geom else geom1 if geom2 == geom else -1
+            if other == fixed_pad:
+                fixed = True
+            elif other == moving_pad:
+                moving = True
+        return fixed, moving
+
+    def grasped(self, name: str) -> bool:
+        """True when both jaw pads touch object ``name``."""
+        fixed, moving = self.jaw_contacts(name)
+        return fixed and moving
+
+    def touched_by_jaws(self, name: str) -> bool:
+        """True when either jaw pad touches object ``name``."""
+        fixed, moving = self.jaw_contacts(name)
+        return fixed or moving
+
+    def touching(self, first: str, second: str) -> bool:
+        """True when objects/fixtures ``first`` and ``second`` touch (``"table"`` too)."""
+        groups = self._geom_groups
+        for name in (first, second):
+            if name not in groups:
+                raise ValueError(
+                    f"unknown object or fixture {name!r}; this scene has {sorted(groups)}."
+                )
+        a, b = groups[first], groups[second]
+        d = self._mj_data
+        for geom1, geom2 in d.contact.geom[: d.ncon].tolist():
+            if (geom1 in a and geom2 in b) or (geom1 in b and geom2 in a):
+                return True
+        return False
+
+    # --- objects and fixtures, by name ---------------------------------------------------
+    @property
+    def object_names(self) -> tuple[str, ...]:
+        """The free objects of this scene, in declaration order."""
+        return tuple(self._objects)
+
+    @property
+    def fixture_names(self) -> tuple[str, ...]:
+        """The fixtures of this scene, in declaration order."""
+        return tuple(self._fixtures)
+
+    def object_position(self, name: str) -> np.ndarray:
+        """World position (m) of object ``name``'s centre."""
+        return self._object(name).pos.copy()
+
+    def object_quaternion(self, name: str) -> np.ndarray:
+        """Orientation of object ``name`` as a (w, x, y, z) quaternion."""
+        return self._object(name).quat.copy()
+
+    def object_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Position (m) and (w, x, y, z) quaternion of object ``name``."""
+        index = self._object(name)
+        return index.pos.copy(), index.quat.copy()
+
+    def object_velocity(self, name: str) -> np.ndarray:
+        """Linear velocity (m/s, world frame) of object ``name``."""
+        return self._object(name).linvel.copy()
+
+    def object_speed(self, name: str) -> float:
+        """Linear speed (m/s) of object ``name``."""
+        vx, vy, vz = self._object(name).linvel.tolist()
+        return math.sqrt(vx * vx + vy * vy + vz * vz)
+
+    def object_yaw(self, name: str) -> float:
+        """Yaw (rad) of object ``name``'s x axis about the world z axis."""
+        w, x, y, z = self._object(name).quat.tolist()
+        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+    def object_height(self, name: str) -> float:
+        """Height (m) of object ``name``'s lowest point above the table top."""
+        index = self._object(name)
+        centre_z, w, x, y, z = index.z_and_quat.tolist()
+        r20 = 2.0 * (x * z - w * y)
+        r21 = 2.0 * (y * z + w * x)
+        r22 = 1.0 - 2.0 * (x * x + y * y)
+        size = index.size
+        if index.shape == "box":
+            reach = size[0] * abs(r20) + size[1] * abs(r21) + size[2] * abs(r22)
+        elif index.shape == "cylinder":
+            reach = size[1] * abs(r22) + size[0] * math.sqrt(max(0.0, 1.0 - r22 * r22))
+        else:
+            reach = size[0]
+        return float(centre_z - reach - constants.TABLE_TOP_Z_M)
+
+    def set_object_pose(self, name: str, position: np.ndarray, quaternion: np.ndarray) -> None:
+        """Teleport object ``name`` at rest (used only inside a reset context)."""
+        index = self._object(name)
+        index.pos[:] = position
+        index.quat[:] = quaternion
+        index.qvel[:] = 0.0
+
+    def fixture_position(self, name: str) -> np.ndarray:
+        """World position (m) of fixture ``name``'s site (the point a task aims at)."""
+        return self._fixture(name).xpos.copy()
+
+    def fixture_joint_position(self, name: str) -> float:
+        """Position of fixture ``name``'s joint (m for a slide, rad for a hinge)."""
+        index = self._fixture(name)
+        if index.qpos_adr < 0:
+            raise ValueError(f"fixture {name!r} has no joint; it does not move.")
+        return float(self._qpos[index.qpos_adr])
+
+    def max_object_distance(self) -> tuple[str, float] | None:
+        """The object farthest from the world origin and that distance (m), or None."""
+        best: tuple[str, float] | None = None
+        for name, index in self._objects.items():
+            distance = max(map(abs, index.pos.tolist()))
+            if best is None or distance > best[1]:
+                best = (name, distance)
+        return best
+
+    # --- whole state -----------------------------------------------------------------
+    def reset_to_home(self) -> None:
+        """Load the ``home`` keyframe (all joints at 0 rad) into qpos, qvel and ctrl."""
+        mujoco.mj_resetDataKeyframe(self._mj_model, self._mj_data, self._home_key)
+
+    def state_is_finite(self) -> bool:
+        """False when positions, velocities or accelerations hold NaN or inf."""
+        # A float sum is NaN or inf as soon as one term is (without numpy's warnings), and
+        # cheaper than np.isfinite(...).all() three times. Finite terms could only
+        # overflow it beyond 1e307; MuJoCo resets a state long before (beyond 1e10).
+        total = sum(self._qpos.tolist()) + sum(self._qvel.tolist()) + sum(self._qacc.tolist())
+        return math.isfinite(total)

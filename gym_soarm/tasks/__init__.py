@@ -1,0 +1,35 @@
+"""Every task of gym_soarm: one module each, registered here.
+
+A task module declares a :class:`~gym_soarm.tasks.base.Task` subclass, its scripted
+expert and a :class:`~gym_soarm.tasks.base.TaskSpec`; the list below registers the
+built-in ones. Users register their own tasks with :func:`register_task` (see the
+README's "Adding a task").
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from gym_soarm.tasks.base import StateField, Task, TaskSpec
+from gym_soarm.tasks.registry import ENV_IDS, get_task, register_task, task_names, task_spellings
+
+BUILTIN_TASK_MODULES: tuple[str, ...] = (
+    "pick_and_place_cube",
+    "lift_cube",
+)
+"""The built-in task modules, in the order the registry (and the README) lists them."""
+
+for _module in BUILTIN_TASK_MODULES:
+    register_task(importlib.import_module(f"gym_soarm.tasks.{_module}").SPEC)
+
+__all__ = [
+    "BUILTIN_TASK_MODULES",
+    "ENV_IDS",
+    "StateField",
+    "Task",
+    "TaskSpec",
+    "get_task",
+    "register_task",
+    "task_names",
+    "task_spellings",
+]

@@ -1,0 +1,253 @@
+"""The contract of a task: its declaration (:class:`TaskSpec`) and its episode logic (:class:`Task`).
+
+A task is one module under ``gym_soarm/tasks/``: a :class:`Task` subclass (where objects
+start, what the environment state holds, what earns reward, what counts as success),
+its scripted expert beside it, and a :class:`TaskSpec` that names the environment id,
+the step limit, the scene's objects and fixtures and the instruction. Registering the
+spec (:func:`gym_soarm.tasks.register_task`) is all it takes for ``gym.make``, the
+expert, the recorder, the LeRobot config and the benchmark to know the task.
+
+The environment (:class:`gym_soarm.env.SoArmEnv`) is a thin adapter: it validates
+arguments, steps the physics, renders cameras and calls the task's hooks. dm_control
+provides the physics (``dm_control.mujoco.Physics``: named access, reset contexts);
+the task is this small protocol of our own, so no hook exists that nobody calls.
+Tasks never draw random numbers of their own: the environment hands every hook that
+needs them its ``np_random`` generator.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import numbers
+from collections.abc import Mapping
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
+
+import numpy as np
+
+from gym_soarm import constants
+from gym_soarm.sim.objects import Scene
+from gym_soarm.sim.physics import SoArmPhysics
+
+if TYPE_CHECKING:
+    from gym_soarm.tasks.scripted import ScriptedExpert
+
+
+def norm(vector: np.ndarray) -> float:
+    """Euclidean norm of a 1-D float array: what np.linalg.norm computes, with less overhead."""
+    return math.sqrt(vector.dot(vector))
+
+
+def tolerance(distance: float, bound: float, margin: float) -> float:
+    """1 inside ``bound``, falling smoothly to 0.1 at ``bound + margin``, in [0, 1]."""
+    if distance <= bound:
+        return 1.0
+    x = (distance - bound) / margin
+    return float(math.exp(-math.log(10.0) * x * x))
+
+
+@dataclasses.dataclass(frozen=True)
+class RewardWeights:
+    """Weights of the dense reward terms; they sum to 1 so the total is in [0, 1]."""
+
+    terms: Mapping[str, float]
+
+    def __post_init__(self) -> None:
+        if not math.isclose(sum(self.terms.values()), 1.0):
+            raise ValueError(f"reward weights must sum to 1, got {dict(self.terms)!r}")
+        object.__setattr__(self, "terms", MappingProxyType(dict(self.terms)))
+
+    def total(self, values: Mapping[str, float]) -> float:
+        return float(sum(w * values[name] for name, w in self.terms.items()))
+
+
+class StateField(NamedTuple):
+    """One named field of ``environment_state``.
+
+    Attributes:
+        name: the field (``"cube_pos"``).
+        names: the name of each value, for datasets (``("cube_x", "cube_y", "cube_z")``).
+        bound: every value lies within [-bound, bound] (metres for positions).
+    """
+
+    name: str
+    names: tuple[str, ...]
+    bound: float
+
+    @property
+    def size(self) -> int:
+        return len(self.names)
+
+
+def position_field(name: str, prefix: str) -> StateField:
+    """A world position (m): ``{prefix}_x``, ``_y``, ``_z``."""
+    return StateField(
+        name, (f"{prefix}_x", f"{prefix}_y", f"{prefix}_z"), constants.POSITION_BOUND_M
+    )
+
+
+def quaternion_field(name: str, prefix: str) -> StateField:
+    """An orientation quaternion (w, x, y, z): ``{prefix}_qw`` ... ``_qz``."""
+    return StateField(name, tuple(f"{prefix}_q{c}" for c in "wxyz"), 1.0)
+
+
+def scalar_field(name: str, bound: float) -> StateField:
+    """One number within [-bound, bound]."""
+    return StateField(name, (name,), bound)
+
+
+class Task:
+    """Episode logic of one task; one subclass per task.
+
+    Subclasses set :attr:`weights` and :attr:`state_fields` and implement
+    :meth:`initialize_episode`, :meth:`environment_state`, :meth:`is_success` and
+    :meth:`reward_terms`; tasks with reset options set :attr:`option_keys` and
+    override :meth:`validate_options`; :meth:`episode_info` adds the task's own
+    ``info`` keys.
+
+    Args:
+        spec: the task's registered declaration (scene, instructions, step limit).
+    """
+
+    weights: ClassVar[RewardWeights]
+    state_fields: ClassVar[tuple[StateField, ...]]
+    option_keys: ClassVar[tuple[str, ...]] = ()
+
+    def __init__(self, spec: TaskSpec) -> None:
+        self.spec = spec
+        self.instruction = spec.instructions[0]
+
+    # --- layout ------------------------------------------------------------------------
+    @property
+    def state_layout(self) -> tuple[tuple[str, int], ...]:
+        """The ``environment_state`` layout: ordered (field, size) pairs."""
+        return tuple((field.name, field.size) for field in self.state_fields)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """The name of every value of ``environment_state``, in order."""
+        return tuple(name for field in self.state_fields for name in field.names)
+
+    def state_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of ``environment_state``."""
+        high = np.concatenate(
+            [np.full(f.size, f.bound, dtype=np.float64) for f in self.state_fields]
+        )
+        return -high, high
+
+    # --- episode -------------------------------------------------------------------------
+    def validate_options(self, options: Mapping[str, Any]) -> dict[str, Any]:
+        """Check this task's reset options (only keys of :attr:`option_keys` reach here).
+
+        Returns the validated values; raises ``ValueError`` naming what was expected.
+        """
+        return dict(options)
+
+    def initialize_episode(
+        self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
+    ) -> None:
+        """Place the arm and the objects for a new episode (inside a reset context)."""
+        raise NotImplementedError
+
+    def before_step(self, action: np.ndarray, physics: SoArmPhysics) -> None:
+        """Apply the (validated, clipped) joint targets in radians."""
+        physics.set_joint_targets(action)
+
+    # --- observation, reward, success ----------------------------------------------------
+    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
+        """The values of :attr:`state_fields`, concatenated (float64)."""
+        raise NotImplementedError
+
+    def is_success(self, physics: SoArmPhysics) -> bool:
+        raise NotImplementedError
+
+    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
+        """The named reward terms, each in [0, 1], that never fall as the task progresses.
+
+        Args:
+            physics: the simulation to score.
+            success: ``is_success(physics)`` when the caller already has it.
+        """
+        raise NotImplementedError
+
+    def reward(self, physics: SoArmPhysics) -> float:
+        """The dense reward: the weighted sum of :meth:`reward_terms`, in [0, 1]."""
+        return self.weights.total(self.reward_terms(physics))
+
+    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+        """The task's own ``info`` keys (the environment adds the common ones)."""
+        return {}
+
+    def evaluation_resets(self, seeds: int) -> list[tuple[int, dict[str, Any] | None]]:
+        """(seed, options) of the episodes the expert is measured on: seeds 0 .. seeds-1."""
+        return [(seed, None) for seed in range(seeds)]
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskSpec:
+    """Everything the registry knows of a task.
+
+    Attributes:
+        name: the task's one name, also its id's: ``"LiftCube-v0"`` gives
+            ``gym_soarm/LiftCube-v0``.
+        task: the :class:`Task` subclass.
+        expert: the scripted expert class (``expert(env, config)``), or None.
+        max_episode_steps: the step limit (50 steps a second).
+        scene: the objects and fixtures on the table.
+        instructions: the instruction sentence; a task with a choice lists one
+            template per choice and picks it at reset.
+        summary: a short description for tables (``"lift the cube 5 cm"``).
+        default_placement: ``"grid"`` or ``"uniform"``: how objects start by default.
+        aliases: other spellings every command line accepts (``"lift"``).
+        extra_env_ids: gym ids beside ``gym_soarm/<name>`` (``"SoArm-v0"``).
+    """
+
+    name: str
+    task: type[Task]
+    expert: type[ScriptedExpert] | None
+    max_episode_steps: int
+    scene: Scene
+    instructions: tuple[str, ...]
+    summary: str
+    default_placement: str = "uniform"
+    aliases: tuple[str, ...] = ()
+    extra_env_ids: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.endswith(("-v0", "-v1", "-v2")):
+            raise ValueError(
+                f"a task name ends with its version, e.g. 'StackCube-v0'; got {self.name!r}."
+            )
+        if not (isinstance(self.task, type) and issubclass(self.task, Task)):
+            raise TypeError(f"task must be a Task subclass; got {self.task!r}.")
+        steps = self.max_episode_steps
+        if isinstance(steps, bool) or not isinstance(steps, numbers.Integral) or steps < 1:
+            raise ValueError(f"max_episode_steps must be an int >= 1; got {steps!r}.")
+        if not isinstance(self.scene, Scene):
+            raise TypeError(f"scene must be a gym_soarm.sim.objects.Scene; got {self.scene!r}.")
+        object.__setattr__(self, "instructions", tuple(self.instructions))
+        if not self.instructions or not all(isinstance(s, str) and s for s in self.instructions):
+            raise ValueError(
+                f"instructions must be non-empty sentences; got {self.instructions!r}."
+            )
+        if self.default_placement not in ("grid", "uniform"):
+            raise ValueError(
+                f"default_placement must be 'grid' or 'uniform'; got {self.default_placement!r}."
+            )
+        object.__setattr__(self, "aliases", tuple(self.aliases))
+        object.__setattr__(self, "extra_env_ids", tuple(self.extra_env_ids))
+
+    @property
+    def env_id(self) -> str:
+        """The task's gym id, ``gym_soarm/<name>``."""
+        return f"gym_soarm/{self.name}"
+
+    @property
+    def env_ids(self) -> tuple[str, ...]:
+        """Every gym id of the task: ``gym_soarm/<name>`` first."""
+        return (self.env_id, *self.extra_env_ids)
+
+    def make_task(self) -> Task:
+        """A new instance of the task's episode logic."""
+        return self.task(self)

@@ -1,0 +1,101 @@
+"""What the single-cube tasks share: the 3 cm blue cube, its grid start and its info keys.
+
+``LiftCube-v0`` and ``PickAndPlaceCube-v0`` start the cube on one of the seed's nine
+grid cells with one of four yaws (reset options ``cube_grid_position`` and
+``cube_rotation_deg`` choose them for one reset).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+
+from gym_soarm import constants
+from gym_soarm.sim.objects import SceneObject
+from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.tasks import placement
+from gym_soarm.tasks.base import Task, norm, position_field, quaternion_field, tolerance
+
+CUBE_SIZE_M = 0.03
+CUBE_HALF_M = CUBE_SIZE_M / 2
+CUBE = SceneObject(
+    name="cube",
+    shape="box",
+    size_m=(CUBE_HALF_M, CUBE_HALF_M, CUBE_HALF_M),
+    colour="blue",
+    mass_kg=0.02,
+    position_m=placement.GRID_CENTER_M,
+)
+"""The 3 cm, 20 g blue cube."""
+
+REACH_MARGIN_M = 0.10
+LIFT_HEIGHT_M = 0.05
+"""The lift task's line, and the height a carried cube counts as lifted at."""
+
+
+@dataclasses.dataclass(frozen=True)
+class GridStart:
+    """Where the cube started: its grid cell and its yaw in degrees."""
+
+    grid_cell: int
+    yaw_deg: float
+
+
+class CubeGridTask(Task):
+    """A task with one cube that starts on a grid cell (base of lift and pick-and-place)."""
+
+    option_keys: ClassVar[tuple[str, ...]] = placement.GRID_OPTION_KEYS
+    cube = CUBE.name
+
+    def __init__(self, spec) -> None:
+        super().__init__(spec)
+        self.start: GridStart | None = None
+
+    def validate_options(self, options: Mapping[str, Any]) -> dict[str, Any]:
+        return placement.validate_grid_options(options)
+
+    def initialize_episode(
+        self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
+    ) -> None:
+        cell, yaw = placement.draw_grid_start(
+            rng, options.get("cube_grid_position"), options.get("cube_rotation_deg")
+        )
+        physics.reset_to_home()
+        x, y = placement.grid_cell_position(cell)
+        physics.set_object_pose(
+            self.cube,
+            np.array([x, y, constants.TABLE_TOP_Z_M + CUBE_HALF_M]),
+            placement.yaw_quaternion(yaw),
+        )
+        self.start = GridStart(cell, yaw)
+
+    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+        start = self.start
+        return {
+            "cube_grid_position": start.grid_cell,
+            "cube_rotation_deg": start.yaw_deg,
+            "cube_pos": physics.object_position(self.cube),
+        }
+
+    def evaluation_resets(self, seeds: int) -> list[tuple[int, dict[str, Any] | None]]:
+        """The grid sweep: 9 cells x 4 yaws x ``seeds`` seeds (seeds 0 .. seeds-1)."""
+        return placement.grid_evaluation_resets(range(seeds))
+
+    # --- shared reward pieces --------------------------------------------------------
+    def _reach(self, physics: SoArmPhysics) -> float:
+        distance = norm(physics.grasp_center() - physics.object_position(self.cube))
+        return tolerance(distance, 0.01, REACH_MARGIN_M)
+
+    def _lift_progress(self, physics: SoArmPhysics) -> float:
+        """How far a held cube is raised towards the carry height, in [0, 1]."""
+        return min(max(physics.object_height(self.cube) / LIFT_HEIGHT_M, 0.0), 1.0)
+
+
+CUBE_STATE_FIELDS = (
+    position_field("cube_pos", "cube"),
+    quaternion_field("cube_quat_wxyz", "cube"),
+    position_field("gripper_pos", "gripper"),
+)

@@ -1,0 +1,121 @@
+"""``PickAndPlaceCube-v0`` (also ``SoArm-v0``): put the blue cube on the green pad.
+
+Success: the cube's centre is within the pad's 4 cm radius, its bottom within 5 mm of
+the pad's top, it is at rest and neither jaw touches it. Reward terms are stages —
+``reach``, ``grasp``, ``lift``, ``place`` — and a later stage counts every earlier one
+as complete, so the reward never falls as the task progresses.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import numpy as np
+
+from gym_soarm import constants
+from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
+from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.tasks.base import RewardWeights, TaskSpec, position_field, tolerance
+from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M, CUBE_STATE_FIELDS, CubeGridTask
+from gym_soarm.tasks.scripted import PlaceExpert
+
+GOAL_RADIUS_M = 0.04
+GOAL_TOP_Z_M = 0.001
+GOAL_POSITION_M = (0.2, 0.27, 0.0)
+GOAL = Fixture(
+    name="goal",
+    position_m=GOAL_POSITION_M,
+    geoms=(
+        FixtureGeom(
+            "cylinder",
+            (GOAL_RADIUS_M, 0.0005),
+            "green",
+            (0.0, 0.0, 0.0005),
+            collides=False,
+            emission=0.2,
+        ),
+    ),
+    site_m=(0.0, 0.0, GOAL_TOP_Z_M),
+)
+"""A thin green disc on the table (visual only: the cube rests on the table beneath it)."""
+
+PLACE_HEIGHT_TOL_M = 0.005
+PLACE_MARGIN_M = 0.20
+RESTING_SPEED_M_S = 0.05
+# Share of the place term earned by carrying the held cube over the pad, and by a cube
+# that sits on the pad but is still held or moving; the release earns the rest.
+PLACE_CARRY_CREDIT = 0.8
+PLACE_ON_PAD_CREDIT = 0.9
+
+
+class PickAndPlaceTask(CubeGridTask):
+    """Pick the cube up and put it down, released and at rest, on the green pad."""
+
+    weights = RewardWeights({"reach": 0.1, "grasp": 0.2, "lift": 0.3, "place": 0.4})
+    state_fields: ClassVar = (*CUBE_STATE_FIELDS, position_field("goal_pos", "goal"))
+
+    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
+        position, quaternion = physics.object_pose(self.cube)
+        return np.concatenate(
+            [position, quaternion, physics.gripper_position(), physics.fixture_position("goal")]
+        )
+
+    def _goal_distance(self, physics: SoArmPhysics) -> float:
+        """Horizontal distance (m) from the cube's centre to the pad's centre."""
+        cx, cy, _ = physics.object_position(self.cube).tolist()
+        gx, gy, _ = physics.fixture_position("goal").tolist()
+        return math.hypot(cx - gx, cy - gy)
+
+    def _on_goal(self, physics: SoArmPhysics, goal_distance: float) -> bool:
+        if goal_distance > GOAL_RADIUS_M:
+            return False
+        return abs(physics.object_height(self.cube) - GOAL_TOP_Z_M) <= PLACE_HEIGHT_TOL_M
+
+    def is_success(self, physics: SoArmPhysics) -> bool:
+        return (
+            self._on_goal(physics, self._goal_distance(physics))
+            and not physics.touched_by_jaws(self.cube)
+            and physics.object_speed(self.cube) < RESTING_SPEED_M_S
+        )
+
+    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
+        if self.is_success(physics) if success is None else success:
+            return dict.fromkeys(self.weights.terms, 1.0)
+        goal_distance = self._goal_distance(physics)
+        if self._on_goal(physics, goal_distance):
+            # On the pad but still held or moving: only the release is missing.
+            return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACE_ON_PAD_CREDIT}
+        if not physics.grasped(self.cube):
+            return {"reach": self._reach(physics), "grasp": 0.0, "lift": 0.0, "place": 0.0}
+        # A held cube above the pad counts as lifted, so lowering it onto the pad loses nothing.
+        lift = 1.0 if goal_distance <= GOAL_RADIUS_M else self._lift_progress(physics)
+        near_goal = tolerance(goal_distance, GOAL_RADIUS_M / 2, PLACE_MARGIN_M)
+        return {
+            "reach": 1.0,
+            "grasp": 1.0,
+            "lift": lift,
+            "place": PLACE_CARRY_CREDIT * near_goal * lift,
+        }
+
+
+class PickAndPlaceExpert(PlaceExpert):
+    """Lift the cube, carry it over the pad, lower it, release it and move away."""
+
+    def place_target(self) -> np.ndarray:
+        goal = self.env.physics.fixture_position("goal")
+        return np.array([goal[0], goal[1], constants.TABLE_TOP_Z_M + CUBE_HALF_M])
+
+
+SPEC = TaskSpec(
+    name="PickAndPlaceCube-v0",
+    task=PickAndPlaceTask,
+    expert=PickAndPlaceExpert,
+    max_episode_steps=400,
+    scene=Scene(objects=(CUBE,), fixtures=(GOAL,)),
+    instructions=("Pick up the blue cube and place it on the green pad.",),
+    summary="pick the cube up and place it on the green pad",
+    default_placement="grid",
+    aliases=("pick_and_place",),
+    extra_env_ids=("SoArm-v0", "gym_soarm/SoArm-v0"),
+)

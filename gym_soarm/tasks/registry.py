@@ -1,0 +1,87 @@
+"""The task registry: the one list of tasks that everything else reads.
+
+Gym ids, :data:`gym_soarm.ENV_IDS`, the expert, the recorder's ``--task``, the LeRobot
+config, the benchmark and the README's table of environments all come from here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from types import MappingProxyType
+
+from gymnasium.envs.registration import register, registry
+
+from gym_soarm.tasks.base import TaskSpec
+
+ENTRY_POINT = "gym_soarm.env:SoArmEnv"
+
+_TASKS: dict[str, TaskSpec] = {}
+_SPELLINGS: dict[str, str] = {}  # name, alias or env id -> name
+_ENV_IDS: dict[str, tuple[str, int]] = {}
+
+ENV_IDS: Mapping[str, tuple[str, int]] = MappingProxyType(_ENV_IDS)
+"""Every registered gym id -> (task name, max_episode_steps), kept up to date."""
+
+
+def register_task(spec: TaskSpec) -> TaskSpec:
+    """Add a task to the registry and register its gym ids.
+
+    Args:
+        spec: the task's declaration.
+
+    Returns:
+        ``spec``, so a module can write ``SPEC = register_task(TaskSpec(...))``.
+
+    Raises:
+        TypeError: ``spec`` is not a :class:`TaskSpec`.
+        ValueError: its name, an alias or an id is already taken by another task.
+    """
+    if not isinstance(spec, TaskSpec):
+        raise TypeError(f"register_task expects a TaskSpec; got {type(spec).__name__}.")
+    if _TASKS.get(spec.name) == spec:
+        return spec  # the same module imported twice
+    spellings = (spec.name, *spec.aliases, *spec.env_ids)
+    taken = [s for s in spellings if s in _SPELLINGS]
+    if taken:
+        raise ValueError(
+            f"cannot register {spec.name!r}: {taken} already name "
+            f"{sorted({_SPELLINGS[s] for s in taken})}. Choose another name or alias."
+        )
+    _TASKS[spec.name] = spec
+    for spelling in spellings:
+        _SPELLINGS[spelling] = spec.name
+    for env_id in spec.env_ids:
+        _ENV_IDS[env_id] = (spec.name, spec.max_episode_steps)
+        if env_id not in registry:
+            register(
+                id=env_id,
+                entry_point=ENTRY_POINT,
+                max_episode_steps=spec.max_episode_steps,
+                kwargs={"task": spec.name},
+            )
+    return spec
+
+
+def task_names() -> tuple[str, ...]:
+    """Every registered task's name, in registration order."""
+    return tuple(_TASKS)
+
+
+def task_spellings() -> tuple[str, ...]:
+    """Every accepted spelling: names, aliases and gym ids."""
+    return tuple(_SPELLINGS)
+
+
+def get_task(name: str) -> TaskSpec:
+    """The spec of a task by its name, an alias or one of its gym ids.
+
+    Raises:
+        ValueError: unknown name; the message lists the registered ones.
+    """
+    resolved = _SPELLINGS.get(name) if isinstance(name, str) else None
+    if resolved is None:
+        raise ValueError(
+            f"unknown task {name!r}; registered tasks: {', '.join(_TASKS)} (aliases: "
+            f"{', '.join(s for s in _SPELLINGS if s not in _TASKS and '/' not in s and not s.startswith('SoArm'))})."
+        )
+    return _TASKS[resolved]

@@ -1,0 +1,781 @@
+"""Speed benchmark of the SO-101 environments: ``python -m gym_soarm.bench``.
+
+For each configuration it measures, in a fresh process of its own (so that peak memory
+and GL contexts of one configuration never touch another):
+
+* env steps per second through ``gym.make`` (median, min and max of the repeats), with
+  random actions from a seeded generator; resets are not counted;
+* milliseconds per step, split into rendering (time inside the camera renderer) and
+  everything else (physics, reward, observation: reported as ``physics``);
+* ``make`` time (the first ``gym.make`` in the process), ``reset`` time (median of warm
+  resets) and the first reset (which creates the GL context for pixel observations);
+* peak resident memory of the process.
+
+In the same run it measures the ceiling each configuration is compared with, in another
+fresh process that does not import gym_soarm: bare ``mujoco.mj_step`` with the same
+number of substeps for state observations, and a bare ``mujoco.Renderer`` on the same
+compiled model, cameras, image size and quality settings (shadows, reflections,
+multisampling) for pixel observations. The repeats of a configuration and of its
+ceiling alternate, so both see the same machine load; the ratio to the ceiling (the
+median of the per-repeat ratios) shows how much the environment costs on top of what
+MuJoCo itself needs.
+
+``--processes N`` adds the aggregate throughput of ``N`` environments stepped together
+by ``gymnasium.vector.AsyncVectorEnv``. The cold ``make`` time (an empty model cache:
+rebuild the meshes and compile) is measured once per visual variant.
+
+Timings on a shared machine are noisy: read the medians and the ratios.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import os
+import platform
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+DEFAULT_CONFIGS: tuple[str, ...] = (
+    "state",
+    "front_only_640x480",
+    "front_wrist_640x480",
+    "all_640x480",
+    "front_wrist_224x224",
+    "front_wrist_640x480_high",
+)
+DEFAULT_SECONDS = 3.0
+DEFAULT_REPEATS = 3
+DEFAULT_JSON = "gym_soarm_bench.json"
+ENV_ID = "SoArm-v0"
+ACTION_SEED = 0
+N_ACTIONS = 1024  # random actions drawn up front and cycled, so drawing costs nothing
+SLICES_PER_REPEAT = 4  # each repeat alternates this many slices of env and ceiling
+STATE_RESETS = 50
+PIXEL_RESETS = 5
+
+# SPEC section 9 floors: (what is compared, configuration, bound, "min" or "max").
+TARGETS: tuple[tuple[str, str, float, str], ...] = (
+    ("steps_per_s", "state", 4000.0, "min"),
+    ("steps_per_s", "front_only_640x480", 20.0, "min"),
+    ("steps_per_s", "front_wrist_640x480", 10.0, "min"),
+    ("steps_per_s", "front_wrist_224x224", 40.0, "min"),
+    ("reset_ms", "state", 5.0, "max"),
+    ("make_s", "state", 1.0, "max"),
+)
+RATIO_TARGET = 0.8  # every pixel configuration against its raw-renderer ceiling
+
+_CONFIG_PATTERN = re.compile(r"^(front_only|front_wrist|all)_(\d+)x(\d+)(?:_(fast|high))?$")
+
+
+@dataclasses.dataclass(frozen=True)
+class BenchConfig:
+    """One measured configuration, named like ``state`` or ``front_wrist_640x480_high``."""
+
+    name: str
+    obs_type: str
+    camera_config: str | None
+    width: int
+    height: int
+    render_quality: str
+
+    @classmethod
+    def parse(cls, name: str) -> BenchConfig:
+        """The configuration called ``name``.
+
+        Raises:
+            ValueError: ``name`` is not ``state`` or ``{cameras}_{W}x{H}[_fast|_high]``.
+        """
+        if name in ("state", "state_fast"):
+            return cls("state", "environment_state_agent_pos", None, 0, 0, "fast")
+        match = _CONFIG_PATTERN.match(name)
+        if match is None:
+            raise ValueError(
+                f"unknown benchmark configuration {name!r}; expected 'state' or "
+                "'{front_only|front_wrist|all}_{W}x{H}' with an optional '_fast' or '_high' "
+                f"suffix, e.g. {', '.join(DEFAULT_CONFIGS)}."
+            )
+        cameras, width, height, quality = match.groups()
+        return cls(name, "pixels_agent_pos", cameras, int(width), int(height), quality or "fast")
+
+    @property
+    def renders(self) -> bool:
+        return self.camera_config is not None
+
+    def env_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of ``gym.make`` for this configuration."""
+        kwargs: dict[str, Any] = {"obs_type": self.obs_type, "render_quality": self.render_quality}
+        if self.renders:
+            kwargs.update(
+                camera_config=self.camera_config,
+                observation_width=self.width,
+                observation_height=self.height,
+            )
+        return kwargs
+
+
+def _spread(values: Sequence[float]) -> dict[str, Any]:
+    return {
+        "median": statistics.median(values),
+        "min": min(values),
+        "max": max(values),
+        "repeats": list(values),
+    }
+
+
+def _peak_rss_mb() -> float | None:
+    try:
+        import resource
+    except ImportError:  # Windows
+        return None
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    # Linux reports kilobytes, macOS bytes.
+    return peak / (1024 * 1024) if sys.platform == "darwin" else peak / 1024
+
+
+# --- workers (each runs in a process of its own) ------------------------------------------
+# A worker prints "READY <json>" when set up, then answers each "run <seconds>" line on
+# its stdin with "SLICE <json>" (steps taken and seconds spent in them) and "done" with
+# "RESULT <json>" before exiting. The parent alternates short slices of a configuration
+# and of its ceiling, so that both see the same machine load and their ratio holds even
+# on a busy machine.
+
+
+def _emit(tag: str, payload: dict) -> None:
+    print(f"{tag} {json.dumps(payload)}", flush=True)
+
+
+def _serve(ready: dict, run_slice: Callable[[float], dict], finish: Callable[[], dict]) -> None:
+    _emit("READY", ready)
+    for line in sys.stdin:
+        command, _, argument = line.strip().partition(" ")
+        if command == "run":
+            _emit("SLICE", run_slice(float(argument)))
+        elif command == "done":
+            _emit("RESULT", finish())
+            return
+
+
+def _env_worker(config: BenchConfig, model_out: str) -> None:
+    """Set one environment of ``config`` up and time its steps on request."""
+    import gymnasium as gym
+    import mujoco
+    import numpy as np
+
+    import gym_soarm
+    from gym_soarm import constants
+    from gym_soarm.render import backend, camera
+    from gym_soarm.sim import cache
+    from gym_soarm.sim import scene as model
+
+    cache_file = cache.cached_path(model.model_cache_name(config.render_quality))
+    model_cache_hit = cache_file is not None and cache_file.is_file()
+
+    # Time spent inside the renderer, to split each step into physics and rendering.
+    render_seconds = [0.0]
+    original_render = camera.CameraRenderer.render
+
+    def timed_render(self, *args: Any, **kwargs: Any):
+        start = time.perf_counter()
+        try:
+            return original_render(self, *args, **kwargs)
+        finally:
+            render_seconds[0] += time.perf_counter() - start
+
+    camera.CameraRenderer.render = timed_render
+
+    t0 = time.perf_counter()
+    env = gym.make(ENV_ID, **config.env_kwargs())
+    make_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    env.reset(seed=0)
+    first_reset_ms = (time.perf_counter() - t0) * 1e3
+    reset_times = []
+    for _ in range(PIXEL_RESETS if config.renders else STATE_RESETS):
+        t0 = time.perf_counter()
+        env.reset()
+        reset_times.append((time.perf_counter() - t0) * 1e3)
+
+    rng = np.random.default_rng(ACTION_SEED)
+    low, high = env.action_space.low, env.action_space.high
+    actions = rng.uniform(low, high, size=(N_ACTIONS, len(low))).astype(np.float32)
+    env.reset(seed=1)
+    for i in range(3):  # warm up
+        env.step(actions[i])
+    counter = [0]
+
+    def run_slice(seconds: float) -> dict:
+        stepped = 0.0
+        render_seconds[0] = 0.0
+        n = 0
+        i = counter[0]
+        deadline = time.perf_counter() + seconds
+        while True:
+            t0 = time.perf_counter()
+            _, _, terminated, truncated, _ = env.step(actions[i % N_ACTIONS])
+            t1 = time.perf_counter()
+            stepped += t1 - t0
+            n += 1
+            i += 1
+            if terminated or truncated:
+                env.reset()
+            if t1 >= deadline:
+                break
+        counter[0] = i
+        return {"steps": n, "seconds": stepped, "render_seconds": render_seconds[0]}
+
+    physics = env.unwrapped.physics
+    mj_data = physics.data.ptr
+    mujoco.mj_saveModel(physics.model.ptr, model_out, None)
+    ready = {
+        "make_s": make_s,
+        "model_cache_hit": model_cache_hit,
+        "first_reset_ms": first_reset_ms,
+        "reset_ms": statistics.median(reset_times),
+        "substeps": constants.N_SUBSTEPS,
+        "episode_steps": env.spec.max_episode_steps,
+        "camera_ids": [physics.model.name2id(c, "camera") for c in env.unwrapped.cameras],
+        "state": {
+            "qpos": mj_data.qpos.tolist(),
+            "qvel": mj_data.qvel.tolist(),
+            "ctrl": mj_data.ctrl.tolist(),
+        },
+        "gl_backend": backend.gl_backend() if config.renders else None,
+        "gym_soarm": gym_soarm.__version__,
+        "mujoco": mujoco.__version__,
+    }
+
+    def finish() -> dict:
+        env.close()
+        return {"peak_rss_mb": _peak_rss_mb()}
+
+    _serve(ready, run_slice, finish)
+
+
+def _measure_vector(config: BenchConfig, seconds: float, repeats: int, processes: int) -> dict:
+    """Aggregate steps/s of ``processes`` environments in an AsyncVectorEnv."""
+    import gymnasium as gym
+    import numpy as np
+
+    import gym_soarm  # noqa: F401 - registers the environments
+
+    t0 = time.perf_counter()
+    envs = gym.make_vec(
+        ENV_ID, num_envs=processes, vectorization_mode="async", **config.env_kwargs()
+    )
+    make_s = time.perf_counter() - t0
+    try:
+        envs.reset(seed=0)
+        rng = np.random.default_rng(ACTION_SEED)
+        space = envs.single_action_space
+        actions = rng.uniform(
+            space.low, space.high, size=(N_ACTIONS, processes, space.shape[0])
+        ).astype(np.float32)
+        envs.step(actions[0])  # warm up
+        rates = []
+        i = 0
+        for _ in range(repeats):
+            n = 0
+            t0 = time.perf_counter()
+            deadline = t0 + seconds
+            while time.perf_counter() < deadline or n == 0:
+                envs.step(actions[i % N_ACTIONS])
+                n += 1
+                i += 1
+            rates.append(n * processes / (time.perf_counter() - t0))
+    finally:
+        envs.close()
+    return {"processes": processes, "make_s": make_s, "steps_per_s": _spread(rates)}
+
+
+def _measure_cold_make(visual: str) -> dict:
+    """``gym.make`` with an empty model cache: rebuild the meshes and compile."""
+    with tempfile.TemporaryDirectory(prefix="gym_soarm_cold_cache_") as folder:
+        os.environ["GYM_SOARM_CACHE_DIR"] = folder
+        import gymnasium as gym
+
+        import gym_soarm  # noqa: F401 - registers the environments
+
+        t0 = time.perf_counter()
+        env = gym.make(ENV_ID, obs_type="environment_state_agent_pos", render_quality=visual)
+        cold = time.perf_counter() - t0
+        env.close()
+    return {"visual": visual, "make_s": cold}
+
+
+# The ceiling runs in a process that never imports gym_soarm, so that mujoco.Renderer
+# picks its GL backend from MUJOCO_GL like in any MuJoCo program. It speaks the same
+# READY / run / REPEAT / done / RESULT protocol as the workers above.
+_CEILING_SCRIPT = r"""
+import json, sys, time
+import mujoco
+import numpy as np
+
+def emit(tag, payload):
+    print(tag + " " + json.dumps(payload), flush=True)
+
+job = json.loads(sys.argv[1])
+model = mujoco.MjModel.from_binary_path(job["model"])
+data = mujoco.MjData(model)
+state = job["state"]
+data.qpos[:] = state["qpos"]
+data.qvel[:] = state["qvel"]
+data.ctrl[:] = state["ctrl"]
+mujoco.mj_forward(model, data)
+ready = {}
+if job["mode"] == "step":
+    rng = np.random.default_rng(job["seed"])
+    low, high = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
+    actions = rng.uniform(low, high, size=(1024, model.nu))
+    nsub, episode = job["substeps"], job["episode_steps"]
+    start = (data.qpos.copy(), data.qvel.copy())
+    counter = [0]
+
+    def run_slice(seconds):
+        n, spent, i = 0, 0.0, counter[0]
+        deadline = time.perf_counter() + seconds
+        while True:
+            data.ctrl[:] = actions[i % 1024]
+            t0 = time.perf_counter()
+            mujoco.mj_step(model, data, nsub)
+            t1 = time.perf_counter()
+            spent += t1 - t0
+            n += 1
+            i += 1
+            if i % episode == 0:  # like the env's time limit: back to the episode start
+                data.qpos[:], data.qvel[:] = start
+                mujoco.mj_forward(model, data)
+            if t1 >= deadline:
+                break
+        counter[0] = i
+        return {"steps": n, "seconds": spent}
+else:
+    renderer = mujoco.Renderer(model, job["height"], job["width"])
+    high = job["quality"] == "high"
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = high
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = high
+    cameras = job["cameras"]
+    for cam in cameras:
+        renderer.update_scene(data, cam)
+        renderer.render()
+    try:
+        from OpenGL import GL
+        ready["gl_renderer"] = GL.glGetString(GL.GL_RENDERER).decode()
+    except Exception as exc:
+        ready["gl_renderer"] = "unknown (%s)" % type(exc).__name__
+
+    def run_slice(seconds):
+        n = 0
+        t0 = time.perf_counter()
+        deadline = t0 + seconds
+        while True:
+            for cam in cameras:
+                renderer.update_scene(data, cam)
+                renderer.render()
+            n += 1
+            if time.perf_counter() >= deadline:
+                break
+        return {"steps": n, "seconds": time.perf_counter() - t0}
+
+emit("READY", ready)
+for line in sys.stdin:
+    command, _, argument = line.strip().partition(" ")
+    if command == "run":
+        emit("SLICE", run_slice(float(argument)))
+    elif command == "done":
+        if job["mode"] != "step":
+            renderer.close()
+        emit("RESULT", {})
+        break
+"""
+
+
+# --- orchestration ----------------------------------------------------------------------------
+class _Child:
+    """A worker process spoken to line by line; killed if it outlives ``timeout``."""
+
+    def __init__(self, args: list[str], env: dict[str, str], timeout: float) -> None:
+        self._stderr = tempfile.TemporaryFile(mode="w+")  # noqa: SIM115 - closed in close()
+        self._proc = subprocess.Popen(
+            args,
+            env=env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=self._stderr,
+            text=True,
+            bufsize=1,
+        )
+        self._watchdog = threading.Timer(timeout, self._proc.kill)
+        self._watchdog.daemon = True
+        self._watchdog.start()
+
+    def expect(self, tag: str) -> dict:
+        """The payload of the next ``tag`` line; RuntimeError if the process ends first."""
+        assert self._proc.stdout is not None
+        for line in self._proc.stdout:
+            if line.startswith(tag + " "):
+                return json.loads(line[len(tag) + 1 :])
+        self._proc.wait()
+        self._stderr.seek(0)
+        tail = "\n".join(self._stderr.read().strip().splitlines()[-8:])
+        raise RuntimeError(f"worker exited with code {self._proc.returncode}: {tail}")
+
+    def ask(self, command: str, tag: str) -> dict:
+        assert self._proc.stdin is not None
+        self._proc.stdin.write(command + "\n")
+        self._proc.stdin.flush()
+        return self.expect(tag)
+
+    def close(self) -> None:
+        self._watchdog.cancel()
+        if self._proc.poll() is None:
+            self._proc.kill()
+        self._proc.wait()
+        for stream in (self._proc.stdin, self._proc.stdout):
+            if stream is not None:
+                stream.close()
+        self._stderr.close()
+
+
+def _worker_args(job: dict) -> list[str]:
+    return [sys.executable, "-m", "gym_soarm.bench", "--worker", json.dumps(job)]
+
+
+def _one_shot(job: dict, timeout: float) -> dict:
+    child = _Child(_worker_args(job), dict(os.environ), timeout)
+    try:
+        return child.expect("RESULT")
+    finally:
+        child.close()
+
+
+def measure_config(
+    config: BenchConfig, seconds: float, repeats: int, processes: int, workdir: Path
+) -> dict[str, Any]:
+    """Every figure of one configuration and of its ceiling (each in a fresh process)."""
+    timeout = 180 + 3 * seconds * repeats
+    model_path = workdir / f"{config.name}.mjb"
+    result: dict[str, Any] = {"name": config.name, **config.env_kwargs()}
+    env_job = {"kind": "env", "config": config.name, "model_out": str(model_path)}
+    env_child = _Child(_worker_args(env_job), dict(os.environ), timeout)
+    ceiling_child = None
+    try:
+        ready = env_child.expect("READY")
+        state = ready.pop("state")
+        result.update(ready)
+        ceiling_job = {
+            "model": str(model_path),
+            "state": state,
+            "substeps": ready["substeps"],
+            "episode_steps": ready["episode_steps"],
+            "seed": ACTION_SEED,
+            "mode": "render" if config.renders else "step",
+            "cameras": ready["camera_ids"],
+            "width": config.width,
+            "height": config.height,
+            "quality": config.render_quality,
+        }
+        ceiling_env = dict(os.environ, MUJOCO_GL=ready["gl_backend"] or "disable")
+        ceiling_child = _Child(
+            [sys.executable, "-c", _CEILING_SCRIPT, json.dumps(ceiling_job)], ceiling_env, timeout
+        )
+        ceiling_ready = ceiling_child.expect("READY")
+        env_runs, ceiling_runs = [], []
+        for _ in range(repeats):
+            env_run = {"steps": 0, "seconds": 0.0, "render_seconds": 0.0}
+            ceiling_run = {"steps": 0, "seconds": 0.0}
+            for _ in range(SLICES_PER_REPEAT):  # alternate, so both see the same load
+                for totals, child in ((env_run, env_child), (ceiling_run, ceiling_child)):
+                    part = child.ask(f"run {seconds / SLICES_PER_REPEAT!r}", "SLICE")
+                    for key in totals:
+                        totals[key] += part[key]
+            env_runs.append(env_run)
+            ceiling_runs.append(ceiling_run)
+        result.update(env_child.ask("done", "RESULT"))
+        ceiling_child.ask("done", "RESULT")
+    finally:
+        env_child.close()
+        if ceiling_child is not None:
+            ceiling_child.close()
+    env_rates = [r["steps"] / r["seconds"] for r in env_runs]
+    step_ms = [r["seconds"] / r["steps"] * 1e3 for r in env_runs]
+    render_ms = [r["render_seconds"] / r["steps"] * 1e3 for r in env_runs]
+    result["steps_per_s"] = _spread(env_rates)
+    result["ms_per_step"] = {
+        "total": statistics.median(step_ms),
+        "render": statistics.median(render_ms),
+        "physics": statistics.median([s - r for s, r in zip(step_ms, render_ms, strict=True)]),
+    }
+    ceiling_rates = [r["steps"] / r["seconds"] for r in ceiling_runs]
+    result["ceiling"] = {
+        "kind": (
+            f"mujoco.Renderer, {len(ready['camera_ids'])} camera(s)"
+            if config.renders
+            else f"mujoco.mj_step x{ready['substeps']}"
+        ),
+        "steps_per_s": _spread(ceiling_rates),
+        "ms_per_step": 1e3 / statistics.median(ceiling_rates),
+    }
+    if "gl_renderer" in ceiling_ready:
+        result["gl_renderer"] = ceiling_ready["gl_renderer"]
+    # Median of the ratios of repeats whose slices alternated.
+    result["ratio_to_ceiling"] = statistics.median(
+        e / c for e, c in zip(env_rates, ceiling_rates, strict=True)
+    )
+    if processes > 1:
+        vector_job = {
+            "kind": "vector",
+            "config": config.name,
+            "seconds": seconds,
+            "repeats": repeats,
+            "processes": processes,
+        }
+        result["vector"] = _one_shot(vector_job, timeout + 120)
+    return result
+
+
+def _cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def check_targets(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """SPEC section 9 floors, each with the measured value and whether it is met."""
+    by_name = {r["name"]: r for r in results if "error" not in r}
+    checks = []
+    for field, name, bound, kind in TARGETS:
+        if name not in by_name:
+            continue
+        value = by_name[name][field]
+        if isinstance(value, dict):
+            value = value["median"]
+        met = value >= bound if kind == "min" else value < bound
+        checks.append({"config": name, "figure": field, "bound": bound, "kind": kind,
+                       "value": value, "met": met})  # fmt: skip
+    for name, r in by_name.items():
+        if r.get("camera_config"):
+            ratio = r["ratio_to_ceiling"]
+            checks.append({"config": name, "figure": "ratio_to_ceiling", "bound": RATIO_TARGET,
+                           "kind": "min", "value": ratio, "met": ratio >= RATIO_TARGET})  # fmt: skip
+    return checks
+
+
+def format_table(results: Sequence[dict[str, Any]]) -> str:
+    """The results as a Markdown table."""
+    vector = any("vector" in r for r in results)
+    header = [
+        "config",
+        "steps/s median (min-max)",
+        "ms/step physics + render",
+        "ceiling steps/s",
+        "ratio",
+        "make s",
+        "reset ms",
+        "peak RSS MB",
+    ]
+    if vector:
+        header.append("vector steps/s")
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for r in results:
+        if "error" in r:
+            lines.append(f"| {r['name']} | failed: {r['error']} |" + " |" * (len(header) - 2))
+            continue
+        sps, ms = r["steps_per_s"], r["ms_per_step"]
+        rss = r.get("peak_rss_mb")
+        row = [
+            r["name"],
+            f"{_num(sps['median'])} ({_num(sps['min'])}-{_num(sps['max'])})",
+            f"{ms['physics']:.3f} + {ms['render']:.2f}",
+            _num(r["ceiling"]["steps_per_s"]["median"]),
+            f"{r['ratio_to_ceiling']:.2f}",
+            f"{r['make_s']:.2f}",
+            f"{r['reset_ms']:.2f}",
+            "-" if rss is None else f"{rss:.0f}",
+        ]
+        if vector:
+            v = r.get("vector")
+            row.append(f"{_num(v['steps_per_s']['median'])} ({v['processes']} proc)" if v else "-")
+        lines.append("| " + " | ".join(row) + " |")
+    return "\n".join(lines)
+
+
+def _num(x: float) -> str:
+    if x >= 100:
+        return f"{x:,.0f}"
+    return f"{x:.1f}" if x >= 10 else f"{x:.2f}"
+
+
+def run(
+    configs: Sequence[str],
+    seconds: float = DEFAULT_SECONDS,
+    repeats: int = DEFAULT_REPEATS,
+    processes: int = 1,
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Measure ``configs`` and return the whole report (what ``--json`` writes).
+
+    Raises:
+        ValueError: a configuration name is unknown, or seconds/repeats/processes are
+            out of range.
+    """
+    parsed = [BenchConfig.parse(name) for name in configs]
+    if not parsed:
+        raise ValueError("configs must name at least one configuration")
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise ValueError(f"seconds must be a positive number; got {seconds!r}")
+    if repeats < 1:
+        raise ValueError(f"repeats must be at least 1; got {repeats!r}")
+    if processes < 1:
+        raise ValueError(f"processes must be at least 1; got {processes!r}")
+    say = progress or (lambda _message: None)
+    load_start = os.getloadavg() if hasattr(os, "getloadavg") else None
+    started = time.time()
+    results: list[dict[str, Any]] = []
+    with tempfile.TemporaryDirectory(prefix="gym_soarm_bench_") as folder:
+        for config in parsed:
+            say(f"measuring {config.name} ...")
+            try:
+                results.append(measure_config(config, seconds, repeats, processes, Path(folder)))
+            except (RuntimeError, subprocess.TimeoutExpired, OSError, ValueError) as exc:
+                results.append({"name": config.name, "error": str(exc)})
+        cold = []
+        for visual in sorted({c.render_quality for c in parsed}):
+            say(f"measuring a cold make ({visual} meshes, empty model cache) ...")
+            try:
+                cold.append(_one_shot({"kind": "cold_make", "visual": visual}, 300))
+            except (RuntimeError, subprocess.TimeoutExpired, OSError) as exc:
+                cold.append({"visual": visual, "error": str(exc)})
+    first = next((r for r in results if "error" not in r), {})
+    renderer = next((r["gl_renderer"] for r in results if r.get("gl_renderer")), None)
+    return {
+        "machine": {
+            "cpu": _cpu_name(),
+            "cpu_count": os.cpu_count(),
+            "platform": platform.platform(),
+            "python": platform.python_version(),
+            "gl_backend": next((r["gl_backend"] for r in results if r.get("gl_backend")), None),
+            "gl_renderer": renderer,
+            "load_average_start": load_start,
+            "load_average_end": os.getloadavg() if hasattr(os, "getloadavg") else None,
+        },
+        "versions": {"gym_soarm": first.get("gym_soarm"), "mujoco": first.get("mujoco")},
+        "settings": {
+            "seconds": seconds,
+            "repeats": repeats,
+            "processes": processes,
+            "started_unix": started,
+            "duration_s": time.time() - started,
+        },
+        "configs": results,
+        "cold_make": cold,
+        "targets": check_targets(results),
+    }
+
+
+def _worker_main(job_text: str) -> None:
+    job = json.loads(job_text)
+    kind = job["kind"]
+    if kind == "env":
+        _env_worker(BenchConfig.parse(job["config"]), job["model_out"])
+        return
+    if kind == "vector":
+        config = BenchConfig.parse(job["config"])
+        out = _measure_vector(config, job["seconds"], job["repeats"], job["processes"])
+    elif kind == "cold_make":
+        out = _measure_cold_make(job["visual"])
+    else:
+        raise ValueError(f"unknown worker job {kind!r}")
+    _emit("RESULT", out)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command line entry point; returns the process exit code."""
+    parser = argparse.ArgumentParser(
+        prog="python -m gym_soarm.bench",
+        description="Measure env steps/s, make/reset time and memory against MuJoCo's own "
+        "ceiling (bare mj_step, bare mujoco.Renderer) on this machine.",
+    )
+    parser.add_argument(
+        "--configs",
+        default=",".join(DEFAULT_CONFIGS),
+        help="comma-separated configurations: 'state' or '{front_only|front_wrist|all}_{W}x{H}'"
+        " with an optional '_fast'/'_high' suffix (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--seconds",
+        type=float,
+        default=DEFAULT_SECONDS,
+        help="duration of each repeat (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--repeats",
+        type=int,
+        default=DEFAULT_REPEATS,
+        help="timed repeats per measurement; medians are reported (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--processes",
+        type=int,
+        default=1,
+        help="also step N environments in an AsyncVectorEnv and report aggregate steps/s",
+    )
+    parser.add_argument(
+        "--json", default=DEFAULT_JSON, help="where to write the results (default: %(default)s)"
+    )
+    parser.add_argument("--worker", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.worker:
+        _worker_main(args.worker)
+        return 0
+    configs = [c.strip() for c in args.configs.split(",") if c.strip()]
+    try:
+        report = run(
+            configs,
+            args.seconds,
+            args.repeats,
+            args.processes,
+            progress=lambda m: print(m, file=sys.stderr, flush=True),
+        )
+    except ValueError as exc:
+        parser.error(str(exc))
+    machine = report["machine"]
+    print(
+        f"\n{machine['cpu']} ({machine['cpu_count']} cores), GL: {machine['gl_backend']} "
+        f"({machine['gl_renderer']}), load average {machine['load_average_start']}"
+    )
+    print(format_table(report["configs"]))
+    for cold in report["cold_make"]:
+        if "error" in cold:
+            print(f"cold make ({cold['visual']}): failed: {cold['error']}")
+        else:
+            print(f"cold make ({cold['visual']} meshes, empty cache): {cold['make_s']:.2f} s")
+    for check in report["targets"]:
+        sign = ">=" if check["kind"] == "min" else "<"
+        status = "met" if check["met"] else "NOT met"
+        print(
+            f"target {check['config']} {check['figure']} {sign} {check['bound']:g}: "
+            f"{check['value']:.4g} ({status})"
+        )
+    Path(args.json).write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+    print(f"wrote {args.json}")
+    failed = any("error" in r for r in report["configs"])
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

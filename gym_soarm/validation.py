@@ -1,0 +1,130 @@
+"""Argument checks shared by the environment, the recorder, the tools and ``gym_soarm.lerobot``.
+
+One rule for every error raised here: a value of the right type that is not one of the
+valid values raises ``ValueError``; a value of the wrong type raises
+:class:`ArgumentTypeError`, which is both a ``TypeError`` (as Python itself would say)
+and a ``ValueError`` (so ``except ValueError`` catches every bad argument, as the
+environment documents). Every message names the argument, what was expected, what came,
+and how to fix it. Nothing is built or changed before the checks pass.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Sequence
+from typing import Any
+
+from gym_soarm import constants
+
+MIN_IMAGE_SIZE = 16
+MAX_IMAGE_SIZE = 2048
+
+
+class ArgumentTypeError(TypeError, ValueError):
+    """An argument of the wrong type (a ``TypeError`` and a ``ValueError``)."""
+
+
+def choices(values: Sequence[Any]) -> str:
+    """``'a', 'b', 'c'``: valid values as a message lists them."""
+    return ", ".join(repr(v) for v in values)
+
+
+def check_choice(name: str, value: Any, valid: Sequence[Any], none_ok: bool = False) -> Any:
+    """``value`` if it is one of ``valid`` (or None with ``none_ok``), else ``ValueError``."""
+    if none_ok and value is None:
+        return value
+    if not isinstance(value, str) or value not in valid:
+        options = choices(valid) + (" or None" if none_ok else "")
+        raise ValueError(
+            f"{name} must be one of {options}; got {value!r}. Pass e.g. {name}={valid[0]!r}."
+        )
+    return value
+
+
+def check_int(name: str, value: Any, minimum: int, maximum: int | None = None) -> int:
+    """``value`` as an int within [minimum, maximum] (bools are not ints here)."""
+    span = f"from {minimum} to {maximum}" if maximum is not None else f">= {minimum}"
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise ArgumentTypeError(
+            f"{name} must be an int {span}; got {value!r} ({type(value).__name__})."
+        )
+    if int(value) < minimum or (maximum is not None and int(value) > maximum):
+        raise ValueError(f"{name} must be an int {span}; got {value!r}.")
+    return int(value)
+
+
+def check_number(name: str, value: Any, minimum: float | None = None, unit: str = "") -> float:
+    """``value`` as a finite float (>= minimum when given)."""
+    what = f"a finite number{' of ' + unit if unit else ''}"
+    if minimum is not None:
+        what += f" >= {minimum:g}"
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ArgumentTypeError(f"{name} must be {what}; got {value!r} ({type(value).__name__}).")
+    if not math.isfinite(float(value)) or (minimum is not None and float(value) < minimum):
+        raise ValueError(f"{name} must be {what}; got {value!r}.")
+    return float(value)
+
+
+def check_image_size(name: str, value: Any) -> int:
+    """An image height or width in pixels, from 16 to 2048."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise ValueError(
+            f"{name} must be an int from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels; got {value!r}."
+        )
+    if not MIN_IMAGE_SIZE <= int(value) <= MAX_IMAGE_SIZE:
+        raise ValueError(
+            f"{name} must be from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels; got {value!r}."
+        )
+    return int(value)
+
+
+def resolve_camera_config(camera_config: str | Sequence[str]) -> tuple[str, ...]:
+    """Cameras named by a camera config, in the fixed order overview, front, wrist."""
+    if isinstance(camera_config, str):
+        if camera_config not in constants.CAMERA_CONFIGS:
+            raise ValueError(
+                f"camera_config must be one of {choices(constants.CAMERA_CONFIGS)} or a sequence "
+                f"of camera names from {choices(constants.CAMERA_NAMES)}; got {camera_config!r}."
+            )
+        return constants.CAMERA_CONFIGS[camera_config]
+    if not isinstance(camera_config, Sequence) or not camera_config:
+        raise ValueError(
+            f"camera_config must be one of {choices(constants.CAMERA_CONFIGS)} or a non-empty "
+            f"sequence of camera names from {choices(constants.CAMERA_NAMES)}; got {camera_config!r}."
+        )
+    unknown = [c for c in camera_config if c not in constants.CAMERA_NAMES]
+    if unknown:
+        raise ValueError(
+            f"camera_config must name cameras from {choices(constants.CAMERA_NAMES)}; got "
+            f"unknown cameras {unknown!r}. Pass e.g. camera_config=['front_camera']."
+        )
+    return tuple(c for c in constants.CAMERA_NAMES if c in camera_config)
+
+
+def parse_cameras(text: str) -> tuple[str, ...]:
+    """Cameras of a camera config name or of comma-separated camera names (command lines)."""
+    if text in constants.CAMERA_CONFIGS:
+        return resolve_camera_config(text)
+    names = [name.strip() for name in str(text).split(",") if name.strip()]
+    return resolve_camera_config(names)
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """Parse ``"HxW"`` (e.g. ``"480x640"``) into even (height, width) within the env's limits.
+
+    Raises:
+        ValueError: not two integers joined by ``x``, odd, or out of range.
+    """
+    parts = str(text).lower().split("x")
+    try:
+        height, width = (int(p) for p in parts)
+    except ValueError:
+        raise ValueError(f"size must be HEIGHTxWIDTH, e.g. 480x640; got {text!r}.") from None
+    for name, value in (("height", height), ("width", width)):
+        if not MIN_IMAGE_SIZE <= value <= MAX_IMAGE_SIZE or value % 2:
+            raise ValueError(
+                f"size {name} must be even and from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} "
+                f"(H.264 needs even sizes); got {value} in {text!r}."
+            )
+    return height, width
