@@ -30,6 +30,7 @@ import gym_soarm
 from gym_soarm import constants
 from gym_soarm.render.display import DisplayUnavailableError, window_support_problem
 from gym_soarm.render.video import save_frames_to_mp4
+from gym_soarm.tasks import placement
 
 ENV_ID = "SoArm-v0"
 TAIL_STEPS = 25  # keep recording 0.5 s after success: the release and retreat
@@ -144,7 +145,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument(
         "--grid-cell",
         type=int,
-        choices=range(constants.NUM_GRID_CELLS),
+        choices=range(placement.NUM_GRID_CELLS),
         default=None,
         metavar="0-8",
         help="cube start cell (default: a random cell from the seed)",

@@ -19,7 +19,7 @@ from gym_soarm import constants
 from gym_soarm.render.backend import RENDER_QUALITIES
 from gym_soarm.render.camera import CameraRenderer
 from gym_soarm.sim.physics import SoArmPhysics
-from gym_soarm.tasks import get_task, task_names
+from gym_soarm.tasks import get_task
 from gym_soarm.tasks.base import Task, TaskSpec
 from gym_soarm.units import UNITS, JointUnits, check_wrist_roll_offset, joint_units
 from gym_soarm.validation import (
@@ -117,7 +117,7 @@ class SoArmEnv(gym.Env):
         wrist_roll_offset_deg: float = 0.0,
     ) -> None:
         # Validate every argument before building anything.
-        spec = self._check_task(task)
+        spec = get_task(task)
         check_choice("obs_type", obs_type, OBS_TYPES)
         cameras = resolve_camera_config(camera_config)
         height = check_image_size("observation_height", observation_height)
@@ -290,16 +290,6 @@ class SoArmEnv(gym.Env):
             )
         return array
 
-    @staticmethod
-    def _check_task(task: Any) -> TaskSpec:
-        try:
-            return get_task(task)
-        except ValueError:
-            raise ValueError(
-                f"task must be one of {choices(task_names())} (or an alias); got {task!r}. "
-                "Register your own with gym_soarm.register_task(spec)."
-            ) from None
-
     def _validate_options(self, options: Mapping[str, Any] | None) -> dict[str, Any]:
         keys = self._task.option_keys
         example = f"options={{{keys[0]!r}: ...}}" if keys else "options=None"
@@ -313,8 +303,9 @@ class SoArmEnv(gym.Env):
         unknown = sorted(set(options) - {*keys, LEROBOT_ROLLOUT_OPTION}, key=repr)
         if unknown:
             raise ValueError(
-                f"unknown reset option(s) {unknown!r}: {self.task} takes options with keys "
-                f"from {choices(keys) or 'none'}; got {list(options)!r}. Remove the others."
+                f"unknown reset option(s) {unknown!r}: options must have keys from "
+                f"{choices(keys) or 'none (this task takes no options)'} for {self.task}; got "
+                f"{list(options)!r}. Remove the others."
             )
         return self._task.validate_options({k: v for k, v in options.items() if k in keys})
 

@@ -11,6 +11,7 @@ import pytest
 
 import gym_soarm
 from gym_soarm import constants
+from gym_soarm.tasks import cube
 
 STEPS = 3_000
 JOINT_LIMIT_SLACK_RAD = 0.05
@@ -47,11 +48,11 @@ def _hostile_actions(space: gym.spaces.Box, rng: np.random.Generator):
 
 def _over_table(centre: np.ndarray) -> bool:
     """Whether the cube is at table height, well inside the table's footprint."""
-    half_x, half_y = (size / 2 - constants.CUBE_SIZE_M for size in constants.TABLE_SIZE_M)
+    half_x, half_y = (size / 2 - cube.CUBE_SIZE_M for size in constants.TABLE_SIZE_M)
     return (
         abs(centre[0] - TABLE_CENTRE_XY_M[0]) < half_x
         and abs(centre[1] - TABLE_CENTRE_XY_M[1]) < half_y
-        and centre[2] > constants.TABLE_TOP_Z_M - constants.CUBE_SIZE_M
+        and centre[2] > constants.TABLE_TOP_Z_M - cube.CUBE_SIZE_M
     )
 
 
@@ -90,11 +91,11 @@ def test_hostile_actions_for_3000_steps_keep_the_simulation_sound(env_id, seed):
             extremes[0] = np.minimum(extremes[0], angles)
             extremes[1] = np.maximum(extremes[1], angles)
             # Nothing falls through the floor: the cube never sinks halfway into it...
-            centre, bottom = physics.cube_position(), physics.cube_bottom_height()
-            assert centre[2] > FLOOR_Z_M - constants.CUBE_HALF_M, (where, centre.tolist())
+            centre, bottom = physics.object_position("cube"), physics.object_height("cube")
+            assert centre[2] > FLOOR_Z_M - cube.CUBE_HALF_M, (where, centre.tolist())
             lowest_cube_bottom = min(lowest_cube_bottom, bottom)
             # ...and at rest it sits on the floor or the table top, not in them.
-            if np.linalg.norm(physics.cube_velocity()) < REST_SPEED_M_S:
+            if np.linalg.norm(physics.object_velocity("cube")) < REST_SPEED_M_S:
                 resting.append(centre)
                 assert bottom > FLOOR_Z_M - REST_PENETRATION_M, (where, bottom)
                 if _over_table(centre):

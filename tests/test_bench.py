@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from conftest import colour_counts
 
+from gym_soarm.render.camera import CameraRenderer
 from gym_soarm.sim import scene as model
 from gym_soarm.tools import bench
-from gym_soarm.render.camera import CameraRenderer
 
 STAT_FIELDS = {"median", "min", "max", "repeats"}
 
@@ -171,6 +171,6 @@ def test_quality_meshes_render_like_the_provider_meshes(camera):
     provider's meshes, ``fast`` differs by a few grey levels."""
     provider = _render_pose(model.provider_mesh_model(), camera)
     for quality, mean_limit, changed_limit in (("high", 0.5, 0.002), ("fast", 4.0, 0.03)):
-        difference = np.abs(_render_pose(model.load_scene_model(quality), camera) - provider)
+        difference = np.abs(_render_pose(model.load_scene_model(visual=quality), camera) - provider)
         assert difference.mean() < mean_limit, quality
         assert (difference.max(axis=2) > 40).mean() < changed_limit, quality

@@ -15,6 +15,7 @@ from gymnasium.utils.env_checker import check_env
 import gym_soarm
 from gym_soarm import constants
 from gym_soarm.sim import meshes
+from gym_soarm.tasks import cube, placement
 
 ALL_IDS = list(gym_soarm.ENV_IDS)
 # Actions are absolute joint targets in radians bounded by the servo ranges (by design),
@@ -78,7 +79,7 @@ def test_info_keys_and_types_on_reset_and_step(state_env):
     for i in (info, step_info):
         assert type(i["is_success"]) is bool
         assert isinstance(i["cube_grid_position"], int) and 0 <= i["cube_grid_position"] <= 8
-        assert i["cube_rotation_deg"] in constants.CUBE_YAWS_DEG
+        assert i["cube_rotation_deg"] in placement.GRID_YAWS_DEG
         assert i["cube_pos"].shape == (3,) and i["gripper_pos"].shape == (3,)
         assert set(i["reward_terms"]) == {"reach", "grasp", "lift", "place"}
         assert i["task"] == "Pick up the blue cube and place it on the green pad."
@@ -91,9 +92,9 @@ def test_environment_state_layout(state_env):
     state = obs["environment_state"]
     physics = state_env.unwrapped.physics
     np.testing.assert_array_equal(state[0:3], info["cube_pos"])
-    np.testing.assert_array_equal(state[3:7], physics.cube_quaternion())
+    np.testing.assert_array_equal(state[3:7], physics.object_quaternion("cube"))
     np.testing.assert_array_equal(state[7:10], info["gripper_pos"])
-    np.testing.assert_array_equal(state[10:13], physics.goal_position())
+    np.testing.assert_array_equal(state[10:13], physics.fixture_position("goal"))
 
 
 def test_grid_cells_place_the_cube_at_the_table_offsets(state_env):
@@ -106,25 +107,25 @@ def test_grid_cells_place_the_cube_at_the_table_offsets(state_env):
         positions[cell] = info["cube_pos"]
         assert info["cube_grid_position"] == cell
     centre = positions[4]
-    np.testing.assert_allclose(centre[:2], constants.GRID_CENTER_M, atol=1e-9)
+    np.testing.assert_allclose(centre[:2], placement.GRID_CENTER_M, atol=1e-9)
     dxs, dys = (-0.10, 0.0, 0.10), (-0.075, 0.0, 0.075)
     for cell, pos in positions.items():
         np.testing.assert_allclose(pos[:2] - centre[:2], [dxs[cell // 3], dys[cell % 3]], atol=1e-9)
-        assert pos[2] == pytest.approx(constants.CUBE_HALF_M)
+        assert pos[2] == pytest.approx(cube.CUBE_HALF_M)
 
 
 def test_reset_options_apply_to_one_reset_only(state_env):
     cells, yaws = set(), set()
     _, info = state_env.reset(seed=0, options={"cube_grid_position": 2, "cube_rotation_deg": 17.5})
     assert info["cube_grid_position"] == 2 and info["cube_rotation_deg"] == 17.5
-    quat = state_env.unwrapped.physics.cube_quaternion()
+    quat = state_env.unwrapped.physics.object_quaternion("cube")
     assert 2 * math.degrees(math.atan2(quat[3], quat[0])) == pytest.approx(17.5)
     for seed in range(40):
         _, info = state_env.reset(seed=seed)
         cells.add(info["cube_grid_position"])
         yaws.add(info["cube_rotation_deg"])
     assert len(cells) > 3, "random cells should follow once the option is gone"
-    assert yaws <= set(constants.CUBE_YAWS_DEG) and len(yaws) > 1
+    assert yaws <= set(placement.GRID_YAWS_DEG) and len(yaws) > 1
 
 
 def test_same_seed_gives_bit_identical_rollouts_pixels_included(make_env):
@@ -322,8 +323,8 @@ def test_a_closed_gripper_can_touch_the_cube_with_both_pads(state_env):
     env = state_env.unwrapped
     env.reset(seed=0, options={"cube_grid_position": 4, "cube_rotation_deg": 0})
     physics = env.physics
-    assert physics.jaw_contacts() == (False, False)
-    assert physics.cube_bottom_height() == pytest.approx(0.0, abs=1e-9)
+    assert physics.jaw_contacts("cube") == (False, False)
+    assert physics.object_height("cube") == pytest.approx(0.0, abs=1e-9)
 
 
 def test_close_twice_and_use_after_close(make_env):

@@ -8,16 +8,18 @@ import pytest
 from conftest import SMALL
 
 import gym_soarm
-from gym_soarm import constants
 from gym_soarm.cli.expert import main
 from gym_soarm.expert import (
-    TASK_ENV_IDS,
     ExpertConfig,
     evaluate,
     evaluation_resets,
     make_expert,
     run_episode,
 )
+from gym_soarm.tasks import cube, pick_and_place_cube, placement
+
+TASK_ENV_IDS = {"pick_and_place": "gym_soarm/PickAndPlaceCube-v0", "lift": "gym_soarm/LiftCube-v0"}
+TASK_NAMES = {"pick_and_place": "PickAndPlaceCube-v0", "lift": "LiftCube-v0"}
 
 # Success floors over 9 cells x 4 yaws x 3 seeds (SPEC section 8).
 SUCCESS_FLOORS = {"pick_and_place": 0.95, "lift": 0.98}
@@ -51,10 +53,10 @@ def _expert_trace(env: gym.Env, cell: int, yaw: float) -> list[dict]:
                 "phase": phase,
                 "reward": reward,
                 "info": info,
-                "grasped": physics.cube_grasped(),
-                "cube": physics.cube_position(),
+                "grasped": physics.grasped("cube"),
+                "cube": physics.object_position("cube"),
                 "cube_in_site": site_rotation.reshape(3, 3).T
-                @ (physics.cube_position() - physics.grasp_center()),
+                @ (physics.object_position("cube") - physics.grasp_center()),
             }
         )
         if terminated or truncated:
@@ -63,13 +65,12 @@ def _expert_trace(env: gym.Env, cell: int, yaw: float) -> list[dict]:
 
 @pytest.mark.parametrize("task", list(TASK_ENV_IDS))
 def test_expert_succeeds_over_every_cell_yaw_and_seed(task):
-    results = evaluate(task)
+    results = evaluate(TASK_NAMES[task])
     assert len(results) == 9 * 4 * 3
-    assert {(r.cell, r.yaw_deg) for r in results} == {
-        (cell, yaw) for cell in range(9) for yaw in constants.CUBE_YAWS_DEG
-    }
+    starts = {(r.options["cube_grid_position"], r.options["cube_rotation_deg"]) for r in results}
+    assert starts == {(cell, yaw) for cell in range(9) for yaw in placement.GRID_YAWS_DEG}
     rate = sum(r.success for r in results) / len(results)
-    failed = [(r.cell, r.yaw_deg, r.seed) for r in results if not r.success]
+    failed = [(r.options, r.seed) for r in results if not r.success]
     assert rate >= SUCCESS_FLOORS[task], f"{task}: {rate:.1%} success; failed {failed}"
     limit = gym.spec(TASK_ENV_IDS[task]).max_episode_steps
     assert all(r.steps < limit for r in results if r.success)
@@ -80,7 +81,7 @@ def test_random_policy_never_succeeds_over_the_same_resets(make_env, task):
     env = _state_env(make_env, task)
     low, high = env.action_space.low, env.action_space.high
     successes, steps = 0, 0
-    for seed, options in evaluation_resets():
+    for seed, options in evaluation_resets(TASK_NAMES[task]):
         rng = np.random.default_rng(seed)
         env.reset(seed=seed, options=options)
         while True:
@@ -188,8 +189,8 @@ def test_expert_grasps_again_when_the_cube_slips_away(make_env):
     while True:
         if expert.phase == "close" and not moved:
             # Shove the cube 4 cm sideways just as the jaws start to close.
-            position, quaternion = physics.cube_pose()
-            physics.set_cube_pose(position + np.array([0.04, 0.0, 0.0]), quaternion)
+            position, quaternion = physics.object_pose("cube")
+            physics.set_object_pose("cube", position + np.array([0.04, 0.0, 0.0]), quaternion)
             moved = True
         obs, _, terminated, truncated, info = env.step(expert(obs, info))
         if terminated or truncated:
@@ -237,19 +238,19 @@ def test_expert_config_rejects_bad_figures(field, value, fragment):
 
 
 def test_cli_prints_the_success_rate(capsys):
-    main(["--task", "lift", "--seeds", "0"])
+    main(["--task", "lift", "--seeds", "1"])
     out = capsys.readouterr().out
-    assert out.startswith("lift: 36/36 = 100.0 % success")
+    assert out.startswith("LiftCube-v0: 36/36 = 100.0 % success")
 
 
 def test_goal_pad_is_clear_of_every_start_cell_and_seen_by_both_scene_cameras(make_env):
     env = make_env("SoArm-v0", obs_type="pixels", camera_config="all", **SMALL)
     env.reset(seed=0, options={"cube_grid_position": 6})
-    goal = env.unwrapped.physics.goal_position()[:2]
-    cube_reach = constants.CUBE_HALF_M * np.sqrt(2.0)  # centre to a corner, any yaw
-    for cell in range(constants.NUM_GRID_CELLS):
-        gap = np.linalg.norm(np.array(constants.grid_cell_position(cell)) - goal)
-        assert gap > constants.GOAL_RADIUS_M + cube_reach, f"the pad overlaps cell {cell}"
+    goal = env.unwrapped.physics.fixture_position("goal")[:2]
+    cube_reach = cube.CUBE_HALF_M * np.sqrt(2.0)  # centre to a corner, any yaw
+    for cell in range(placement.NUM_GRID_CELLS):
+        gap = np.linalg.norm(np.array(placement.grid_cell_position(cell)) - goal)
+        assert gap > pick_and_place_cube.GOAL_RADIUS_M + cube_reach, f"the pad overlaps cell {cell}"
     for camera in ("overview_camera", "front_camera"):
         image = env.unwrapped.render_camera_image(camera, 120, 160).astype(int)
         r, g, b = image[..., 0], image[..., 1], image[..., 2]
@@ -271,9 +272,10 @@ def test_expert_picks_the_cube_up_again_after_dropping_it(make_env):
         if expert.phase == "carry":
             carry_steps += 1
             if carry_steps == 10:  # take the cube out of the jaws and put it back on the table
-                x, y = constants.grid_cell_position(4)
-                physics.set_cube_pose(
-                    np.array([x, y, constants.CUBE_HALF_M]),
+                x, y = placement.grid_cell_position(4)
+                physics.set_object_pose(
+                    "cube",
+                    np.array([x, y, cube.CUBE_HALF_M]),
                     np.array([np.cos(0.17), 0.0, 0.0, np.sin(0.17)]),
                 )
         obs, _, terminated, truncated, info = env.step(expert(obs, info))

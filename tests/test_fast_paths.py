@@ -15,11 +15,14 @@ import pytest
 from dm_control import mujoco as dm_mujoco
 from dm_control.rl import control
 
+import gym_soarm
 from gym_soarm.sim import cache, meshes, visual_meshes
 from gym_soarm.sim import scene as model
+from gym_soarm.sim.objects import EMPTY_SCENE
 from gym_soarm.sim.physics import SoArmPhysics
 
 N_SUBSTEPS = 10
+PICK_AND_PLACE_SCENE = gym_soarm.get_task("PickAndPlaceCube-v0").scene
 
 
 def _drive(physics: SoArmPhysics, steps: int, seed: int = 0) -> np.ndarray:
@@ -37,7 +40,10 @@ def _drive(physics: SoArmPhysics, steps: int, seed: int = 0) -> np.ndarray:
 
 
 def test_fast_and_high_visual_meshes_give_bit_identical_physics():
-    fast, high = SoArmPhysics.from_scene("fast"), SoArmPhysics.from_scene("high")
+    fast, high = (
+        SoArmPhysics.from_scene(PICK_AND_PLACE_SCENE, visual="fast"),
+        SoArmPhysics.from_scene(PICK_AND_PLACE_SCENE, visual="high"),
+    )
     assert fast.model.ptr.nmeshface < 0.2 * high.model.ptr.nmeshface
     assert (fast.model.ptr.nq, fast.model.ptr.nbody, fast.model.ptr.ngeom) == (
         high.model.ptr.nq,
@@ -50,7 +56,7 @@ def test_fast_and_high_visual_meshes_give_bit_identical_physics():
 
 
 def test_physics_step_matches_dm_control_step_bit_for_bit():
-    ours = SoArmPhysics.from_scene()
+    ours = SoArmPhysics.from_scene(PICK_AND_PLACE_SCENE)
     reference = ours.copy(share_model=False)
     rng = np.random.default_rng(3)
     low, high = ours.control_range()
@@ -70,7 +76,7 @@ def test_physics_step_matches_dm_control_step_bit_for_bit():
 
 
 def test_a_new_mujoco_warning_raises_physics_error_or_is_logged(caplog):
-    physics = SoArmPhysics.from_scene()
+    physics = SoArmPhysics.from_scene(PICK_AND_PLACE_SCENE)
     physics.reset_to_home()
     physics.forward()
     physics.data.qvel[:] = 1e12  # beyond MuJoCo's bound: it resets and warns BADQVEL
@@ -96,7 +102,7 @@ def test_diverging_physics_truncates_the_episode(state_env):
 
 
 def test_state_is_finite_notices_nan_and_inf():
-    physics = SoArmPhysics.from_scene()
+    physics = SoArmPhysics.from_scene(PICK_AND_PLACE_SCENE)
     physics.forward()
     assert physics.state_is_finite()
     physics.data.qvel[2] = np.inf
@@ -178,9 +184,10 @@ def test_cache_dir_follows_the_environment_variable(monkeypatch, tmp_path):
 _LOAD_AND_DESCRIBE = """
 import json, sys
 from gym_soarm.sim import scene as model
-m = model.load_scene_model(sys.argv[1])
+from gym_soarm.sim.objects import EMPTY_SCENE
+m = model.load_scene_model(visual=sys.argv[1])
 print(json.dumps({"nmeshface": int(m.nmeshface), "mesh_vert": float(m.mesh_vert.sum()),
-                  "body_mass": m.body_mass.tolist(), "name": model.model_cache_name(sys.argv[1])}))
+                  "body_mass": m.body_mass.tolist(), "name": model.model_cache_name(EMPTY_SCENE, sys.argv[1])}))
 """
 
 
@@ -198,7 +205,7 @@ def _load_in_subprocess(cache_dir: Path, visual: str) -> dict:
 
 
 def test_compiled_model_is_cached_reused_and_rebuilt_when_damaged(tmp_path):
-    stale = tmp_path / "models" / "scene-fast-0123456789abcdef01234567.mjb"
+    stale = tmp_path / "models" / "scene-fast-0123456789abcdef01234567.mjb"  # same label
     stale.parent.mkdir(parents=True)
     stale.write_bytes(b"a model built from older sources")
     first = _load_in_subprocess(tmp_path, "fast")
@@ -208,7 +215,7 @@ def test_compiled_model_is_cached_reused_and_rebuilt_when_damaged(tmp_path):
     assert len(list((tmp_path / "meshes" / "fast").glob("*.stl"))) == len(meshes.MESH_SHA256)
     stamp = cached.stat().st_mtime_ns
     # The cached binary gives the same model as compiling the XML.
-    compiled = model._compile("fast")
+    compiled = model.build_spec(EMPTY_SCENE, "fast").compile()
     assert first["nmeshface"] == compiled.nmeshface
     assert first["mesh_vert"] == float(compiled.mesh_vert.sum())
     assert first["body_mass"] == compiled.body_mass.tolist()
@@ -221,4 +228,4 @@ def test_compiled_model_is_cached_reused_and_rebuilt_when_damaged(tmp_path):
 
 def test_unknown_visual_variant_is_refused():
     with pytest.raises(ValueError, match="fast"):
-        model.load_scene_model("ultra")
+        model.load_scene_model(visual="ultra")

@@ -8,6 +8,8 @@ episode, and every object and fixture can be seen by the overview and front came
 
 from __future__ import annotations
 
+import itertools
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -106,7 +108,7 @@ def test_reward_terms_bounded_summed_and_never_falling_along_the_expert(task):
         env.close()
     assert info["is_success"] and rewards[-1] == pytest.approx(1.0)
     drops = [
-        (t, a, b) for t, (a, b) in enumerate(zip(rewards, rewards[1:])) if b < a - REWARD_NOISE
+        (t, a, b) for t, (a, b) in enumerate(itertools.pairwise(rewards)) if b < a - REWARD_NOISE
     ]
     assert not drops, f"{task}: the reward fell at steps {drops[:5]}"
 

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import contextlib
+import json
+import os
 import shutil
 import signal
 import threading
@@ -168,3 +170,8 @@ def deferred_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
         if received:
             raise KeyboardInterrupt
+
+
+def load_info(root: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read ``meta/info.json`` of a dataset folder."""
+    return json.loads((Path(root) / INFO_PATH).read_text())

@@ -646,8 +646,3 @@ def _write_json_atomically(path: Path, content: Any, scratch: Path) -> None:
     staged.write_text(json.dumps(content, indent=4) + "\n")
     path.parent.mkdir(parents=True, exist_ok=True)
     os.replace(staged, path)
-
-
-def load_info(root: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read ``meta/info.json`` of a dataset folder."""
-    return json.loads((Path(root) / INFO_PATH).read_text())

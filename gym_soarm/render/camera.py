@@ -15,9 +15,10 @@ import weakref
 import mujoco
 import numpy as np
 
-logger = logging.getLogger(__name__)
 from gym_soarm.render import backend
 from gym_soarm.render.backend import RENDER_QUALITIES
+
+logger = logging.getLogger(__name__)
 
 _live_renderers: weakref.WeakSet[CameraRenderer] = weakref.WeakSet()
 _exit_hook_pid: int | None = None

@@ -80,8 +80,9 @@ def get_task(name: str) -> TaskSpec:
     """
     resolved = _SPELLINGS.get(name) if isinstance(name, str) else None
     if resolved is None:
+        aliases = [s for s, n in _SPELLINGS.items() if s != n and "/" not in s and "-v" not in s]
         raise ValueError(
-            f"unknown task {name!r}; registered tasks: {', '.join(_TASKS)} (aliases: "
-            f"{', '.join(s for s in _SPELLINGS if s not in _TASKS and '/' not in s and not s.startswith('SoArm'))})."
+            f"task must be one of {', '.join(_TASKS)} (or an alias: {', '.join(aliases)}, or a "
+            f"gym id); got {name!r}. Register a new task with gym_soarm.register_task(spec)."
         )
     return _TASKS[resolved]

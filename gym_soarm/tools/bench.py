@@ -57,7 +57,7 @@ DEFAULT_CONFIGS: tuple[str, ...] = (
 DEFAULT_SECONDS = 3.0
 DEFAULT_REPEATS = 3
 DEFAULT_JSON = "gym_soarm_bench.json"
-ENV_ID = "SoArm-v0"
+DEFAULT_TASK = "PickAndPlaceCube-v0"  # SoArm-v0, the part-one figures
 ACTION_SEED = 0
 N_ACTIONS = 1024  # random actions drawn up front and cycled, so drawing costs nothing
 SLICES_PER_REPEAT = 4  # each repeat alternates this many slices of env and ceiling
@@ -88,16 +88,21 @@ class BenchConfig:
     width: int
     height: int
     render_quality: str
+    task: str = DEFAULT_TASK
 
     @classmethod
-    def parse(cls, name: str) -> BenchConfig:
-        """The configuration called ``name``.
+    def parse(cls, name: str, task: str = DEFAULT_TASK) -> BenchConfig:
+        """The configuration called ``name``, on ``task`` (a registered task).
 
         Raises:
-            ValueError: ``name`` is not ``state`` or ``{cameras}_{W}x{H}[_fast|_high]``.
+            ValueError: ``name`` is not ``state`` or ``{cameras}_{W}x{H}[_fast|_high]``,
+                or ``task`` is not registered.
         """
+        from gym_soarm.tasks import get_task
+
+        task = get_task(task).name
         if name in ("state", "state_fast"):
-            return cls("state", "environment_state_agent_pos", None, 0, 0, "fast")
+            return cls("state", "environment_state_agent_pos", None, 0, 0, "fast", task)
         match = _CONFIG_PATTERN.match(name)
         if match is None:
             raise ValueError(
@@ -106,7 +111,15 @@ class BenchConfig:
                 f"suffix, e.g. {', '.join(DEFAULT_CONFIGS)}."
             )
         cameras, width, height, quality = match.groups()
-        return cls(name, "pixels_agent_pos", cameras, int(width), int(height), quality or "fast")
+        return cls(
+            name, "pixels_agent_pos", cameras, int(width), int(height), quality or "fast", task
+        )
+
+    @property
+    def env_id(self) -> str:
+        from gym_soarm.tasks import get_task
+
+        return get_task(self.task).env_id
 
     @property
     def renders(self) -> bool:
@@ -178,7 +191,10 @@ def _env_worker(config: BenchConfig, model_out: str) -> None:
     from gym_soarm.sim import cache
     from gym_soarm.sim import scene as model
 
-    cache_file = cache.cached_path(model.model_cache_name(config.render_quality))
+    spec = gym_soarm.get_task(config.task)
+    cache_file = cache.cached_path(
+        model.model_cache_name(spec.scene, config.render_quality, spec.name)
+    )
     model_cache_hit = cache_file is not None and cache_file.is_file()
 
     # Time spent inside the renderer, to split each step into physics and rendering.
@@ -195,7 +211,7 @@ def _env_worker(config: BenchConfig, model_out: str) -> None:
     camera.CameraRenderer.render = timed_render
 
     t0 = time.perf_counter()
-    env = gym.make(ENV_ID, **config.env_kwargs())
+    env = gym.make(config.env_id, **config.env_kwargs())
     make_s = time.perf_counter() - t0
     t0 = time.perf_counter()
     env.reset(seed=0)
@@ -271,7 +287,7 @@ def _measure_vector(config: BenchConfig, seconds: float, repeats: int, processes
 
     t0 = time.perf_counter()
     envs = gym.make_vec(
-        ENV_ID, num_envs=processes, vectorization_mode="async", **config.env_kwargs()
+        config.env_id, num_envs=processes, vectorization_mode="async", **config.env_kwargs()
     )
     make_s = time.perf_counter() - t0
     try:
@@ -298,16 +314,20 @@ def _measure_vector(config: BenchConfig, seconds: float, repeats: int, processes
     return {"processes": processes, "make_s": make_s, "steps_per_s": _spread(rates)}
 
 
-def _measure_cold_make(visual: str) -> dict:
+def _measure_cold_make(visual: str, task: str = DEFAULT_TASK) -> dict:
     """``gym.make`` with an empty model cache: rebuild the meshes and compile."""
     with tempfile.TemporaryDirectory(prefix="gym_soarm_cold_cache_") as folder:
         os.environ["GYM_SOARM_CACHE_DIR"] = folder
         import gymnasium as gym
 
-        import gym_soarm  # noqa: F401 - registers the environments
+        import gym_soarm
 
         t0 = time.perf_counter()
-        env = gym.make(ENV_ID, obs_type="environment_state_agent_pos", render_quality=visual)
+        env = gym.make(
+            gym_soarm.get_task(task).env_id,
+            obs_type="environment_state_agent_pos",
+            render_quality=visual,
+        )
         cold = time.perf_counter() - t0
         env.close()
     return {"visual": visual, "make_s": cold}
@@ -466,7 +486,12 @@ def measure_config(
     timeout = 180 + 3 * seconds * repeats
     model_path = workdir / f"{config.name}.mjb"
     result: dict[str, Any] = {"name": config.name, **config.env_kwargs()}
-    env_job = {"kind": "env", "config": config.name, "model_out": str(model_path)}
+    env_job = {
+        "kind": "env",
+        "config": config.name,
+        "task": config.task,
+        "model_out": str(model_path),
+    }
     env_child = _Child(_worker_args(env_job), dict(os.environ), timeout)
     ceiling_child = None
     try:
@@ -536,6 +561,7 @@ def measure_config(
         vector_job = {
             "kind": "vector",
             "config": config.name,
+            "task": config.task,
             "seconds": seconds,
             "repeats": repeats,
             "processes": processes,
@@ -626,6 +652,7 @@ def run(
     repeats: int = DEFAULT_REPEATS,
     processes: int = 1,
     progress: Callable[[str], None] | None = None,
+    task: str = DEFAULT_TASK,
 ) -> dict[str, Any]:
     """Measure ``configs`` and return the whole report (what ``--json`` writes).
 
@@ -633,7 +660,7 @@ def run(
         ValueError: a configuration name is unknown, or seconds/repeats/processes are
             out of range.
     """
-    parsed = [BenchConfig.parse(name) for name in configs]
+    parsed = [BenchConfig.parse(name, task) for name in configs]
     if not parsed:
         raise ValueError("configs must name at least one configuration")
     if not (math.isfinite(seconds) and seconds > 0):
@@ -657,7 +684,8 @@ def run(
         for visual in sorted({c.render_quality for c in parsed}):
             say(f"measuring a cold make ({visual} meshes, empty model cache) ...")
             try:
-                cold.append(_one_shot({"kind": "cold_make", "visual": visual}, 300))
+                job = {"kind": "cold_make", "visual": visual, "task": parsed[0].task}
+                cold.append(_one_shot(job, 300))
             except (RuntimeError, subprocess.TimeoutExpired, OSError) as exc:
                 cold.append({"visual": visual, "error": str(exc)})
     first = next((r for r in results if "error" not in r), {})
@@ -675,6 +703,7 @@ def run(
         },
         "versions": {"gym_soarm": first.get("gym_soarm"), "mujoco": first.get("mujoco")},
         "settings": {
+            "task": parsed[0].task,
             "seconds": seconds,
             "repeats": repeats,
             "processes": processes,
@@ -691,13 +720,13 @@ def _worker_main(job_text: str) -> None:
     job = json.loads(job_text)
     kind = job["kind"]
     if kind == "env":
-        _env_worker(BenchConfig.parse(job["config"]), job["model_out"])
+        _env_worker(BenchConfig.parse(job["config"], job["task"]), job["model_out"])
         return
     if kind == "vector":
-        config = BenchConfig.parse(job["config"])
+        config = BenchConfig.parse(job["config"], job["task"])
         out = _measure_vector(config, job["seconds"], job["repeats"], job["processes"])
     elif kind == "cold_make":
-        out = _measure_cold_make(job["visual"])
+        out = _measure_cold_make(job["visual"], job["task"])
     else:
         raise ValueError(f"unknown worker job {kind!r}")
     _emit("RESULT", out)
@@ -737,6 +766,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--json", default=DEFAULT_JSON, help="where to write the results (default: %(default)s)"
     )
+    parser.add_argument(
+        "--task",
+        default=DEFAULT_TASK,
+        help="the registered task to measure (default: %(default)s, the scene of SoArm-v0)",
+    )
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker:
@@ -750,6 +784,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.repeats,
             args.processes,
             progress=lambda m: print(m, file=sys.stderr, flush=True),
+            task=args.task,
         )
     except ValueError as exc:
         parser.error(str(exc))
