@@ -1,13 +1,17 @@
-"""Record SO-101 pick-and-place episodes to one MP4 file per camera.
+"""Record SO-101 episodes to one MP4 file per camera.
 
     python examples/example.py
 
-runs one episode of SoArm-v0 with the scripted expert and writes
+runs one pick-and-place episode (SoArm-v0) with the scripted expert and writes
 
     videos/front_camera_YYYYmmdd_HHMMSS.mp4
     videos/wrist_camera_YYYYmmdd_HHMMSS.mp4
 
-(H.264, yuv420p, 50 fps: they play in a browser). An episode ends half a second after
+(H.264, yuv420p, 50 fps: they play in a browser). The first run renders with the
+``fast`` quality and takes about 10 s on two CPU cores without a GPU (plus about a
+second to build the meshes on a new machine); ``--quality high`` adds shadows and
+multisampling and takes about a minute and a half there. ``--task`` records any
+registered task (``--task StackCube-v0``). An episode ends half a second after
 the task succeeds, when --steps steps have run, or at the environment's step limit.
 With several episodes the files get an _epNN suffix. On a desktop with the GUI build of
 OpenCV the run is also shown in a window (--viewer auto); on a server it runs headless.
@@ -30,9 +34,10 @@ import gym_soarm
 from gym_soarm import constants
 from gym_soarm.render.display import DisplayUnavailableError, window_support_problem
 from gym_soarm.render.video import save_frames_to_mp4
-from gym_soarm.tasks import placement
+from gym_soarm.tasks import placement, task_names
+from gym_soarm.validation import check_image_size
 
-ENV_ID = "SoArm-v0"
+DEFAULT_TASK = "PickAndPlaceCube-v0"  # SoArm-v0
 TAIL_STEPS = 25  # keep recording 0.5 s after success: the release and retreat
 Policy = Callable[[Any, dict[str, Any]], np.ndarray]
 
@@ -134,12 +139,19 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
+    parser.add_argument(
+        "--task",
+        choices=task_names(),
+        default=DEFAULT_TASK,
+        metavar="TASK",
+        help=f"the task: {', '.join(task_names())} (default: {DEFAULT_TASK})",
+    )
     parser.add_argument("--episodes", type=int, default=1, help="episodes to record (default: 1)")
     parser.add_argument(
         "--steps",
         type=int,
         default=None,
-        help="at most this many steps per episode (default: the environment's limit, 400)",
+        help="at most this many steps per episode (default: the task's limit)",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the first reset (default: 0)")
     parser.add_argument(
@@ -148,7 +160,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         choices=range(placement.NUM_GRID_CELLS),
         default=None,
         metavar="0-8",
-        help="cube start cell (default: a random cell from the seed)",
+        help="cube start cell of the grid tasks (default: a random cell from the seed)",
     )
     parser.add_argument(
         "--camera-config",
@@ -161,9 +173,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     )
     parser.add_argument(
         "--quality",
-        choices=("high", "fast"),
-        default="high",
-        help="high: shadows and multisampling (default); fast: quicker, plainer",
+        choices=("fast", "high"),
+        default="fast",
+        help="fast (default): about 10 s for an episode on two cores; high: shadows and "
+        "multisampling, about ten times slower without a GPU",
     )
     parser.add_argument("--height", type=int, default=480, help="frame height (default: 480)")
     parser.add_argument("--width", type=int, default=640, help="frame width (default: 640)")
@@ -184,6 +197,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         parser.error(f"--episodes must be at least 1; got {args.episodes}")
     if args.steps is not None and args.steps < 1:
         parser.error(f"--steps must be at least 1; got {args.steps}")
+    for flag in ("height", "width"):
+        try:
+            check_image_size(f"--{flag}", getattr(args, flag))
+        except ValueError as error:
+            parser.error(str(error))
+    if args.grid_cell is not None and gym_soarm.get_task(args.task).default_placement != "grid":
+        parser.error(f"--grid-cell applies to the grid tasks; {args.task} places objects anywhere")
     return args
 
 
@@ -194,8 +214,9 @@ def main(argv: list[str] | None = None) -> int:
     except DisplayUnavailableError as error:
         print(f"--viewer on: {error}", file=sys.stderr)
         return 1
+    env_id = gym_soarm.get_task(args.task).env_id
     env = gym.make(
-        ENV_ID,
+        env_id,
         obs_type="pixels_agent_pos",
         camera_config=args.camera_config,
         observation_height=args.height,
@@ -206,7 +227,7 @@ def main(argv: list[str] | None = None) -> int:
     policy, policy_name = make_policy(args.policy, env, args.seed)
     max_steps = env.spec.max_episode_steps if args.steps is None else args.steps
     print(
-        f"{ENV_ID} (gym_soarm {gym_soarm.__version__}): {policy_name}, cameras "
+        f"{env_id} (gym_soarm {gym_soarm.__version__}): {policy_name}, cameras "
         f"{', '.join(env.unwrapped.cameras)}, {args.width}x{args.height}, {args.quality} quality"
         f"{', window open' if show_window else ''}"
     )
@@ -219,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
                 policy,
                 max_steps,
                 seed=args.seed if episode == 0 else None,
-                options={"cube_grid_position": args.grid_cell},
+                options=None if args.grid_cell is None else {"cube_grid_position": args.grid_cell},
                 description=f"episode {episode + 1}/{args.episodes}",
             )
             suffix = f"_ep{episode + 1:02d}" if args.episodes > 1 else ""

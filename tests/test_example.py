@@ -108,6 +108,22 @@ def test_bad_flags_are_refused():
     result = run_example("--steps", "0")
     assert result.returncode == 2
     assert "--steps must be at least 1" in result.stderr
+    for flag, value in (("--height", "5"), ("--width", "4096"), ("--height", "abc")):
+        result = run_example(flag, value)
+        assert result.returncode == 2, (flag, value, result.stderr)
+        assert flag in result.stderr and "Traceback" not in result.stderr
+    result = run_example("--task", "NoSuchTask-v0")
+    assert result.returncode == 2 and "--task" in result.stderr
+
+
+def test_the_default_run_is_the_fast_quality_and_any_task_can_be_chosen(tmp_path):
+    result = run_example(
+        "--height", "48", "--width", "64", "--steps", "3", "--policy", "random", "--viewer",
+        "off", "--task", "LiftCube-v0", "--output-dir", str(tmp_path),
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "gym_soarm/LiftCube-v0" in result.stdout and "fast quality" in result.stdout
+    assert len(videos(tmp_path)) == 2
 
 
 def test_viewer_on_without_a_display_explains_and_writes_nothing(tmp_path):
