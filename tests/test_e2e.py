@@ -340,6 +340,14 @@ def test_close_twice_and_use_after_close(make_env):
         env.unwrapped.step(np.zeros(6))
 
 
+def test_render_without_a_render_mode_warns_and_returns_none(make_env):
+    env = make_env("SoArm-v0", obs_type="environment_state_agent_pos")
+    env.reset(seed=0)
+    with pytest.warns(UserWarning, match=r'render_mode="rgb_array"') as caught:
+        assert env.render() is None
+    assert "SoArm-v0" in str(caught[0].message)
+
+
 def test_rgb_array_render_returns_the_render_camera(make_env):
     env = make_env(
         "SoArm-v0",

@@ -202,7 +202,7 @@ def test_registering_a_clashing_or_malformed_task_is_refused():
 
 
 def test_an_unknown_task_names_the_registered_ones():
-    with pytest.raises(ValueError, match="task must be one of .*LiftCube-v0"):
+    with pytest.raises(ValueError, match=r"task must be one of .*LiftCube-v0"):
         gym_soarm.SoArmEnv(task="FlyToTheMoon-v0")
     with pytest.raises(ValueError, match="LiftCube-v0"):
         gym_soarm.get_task("lift_cube_please")
