@@ -1,0 +1,41 @@
+"""Tables of the README that derive from the task registry.
+
+``python -m gym_soarm.tools.docs`` prints the table of environments; the README holds
+it between ``<!-- env-table:start -->`` and ``<!-- env-table:end -->`` and a test keeps
+the two equal.
+"""
+
+from __future__ import annotations
+
+from gym_soarm.tasks import get_task, task_names
+
+ENV_TABLE_START = "<!-- env-table:start -->"
+ENV_TABLE_END = "<!-- env-table:end -->"
+
+
+def env_table() -> str:
+    """The README's table of environments: one row per registered task."""
+    rows = [
+        "| id | task | instruction | `max_episode_steps` | start |",
+        "|---|---|---|---|---|",
+    ]
+    for name in task_names():
+        spec = get_task(name)
+        ids = ", ".join(f"`{env_id}`" for env_id in spec.env_ids)
+        instruction = (
+            spec.instructions[0]
+            if len(spec.instructions) == 1
+            else (
+                " / ".join(f'"{s}"' for s in spec.instructions[:2])
+                + (" ..." if len(spec.instructions) > 2 else "")
+            )
+        )
+        start = "3 × 3 grid, 4 yaws" if spec.default_placement == "grid" else "anywhere in a region"
+        rows.append(
+            f"| {ids} | {spec.summary} | {instruction} | {spec.max_episode_steps} | {start} |"
+        )
+    return "\n".join(rows)
+
+
+if __name__ == "__main__":
+    print(env_table())
