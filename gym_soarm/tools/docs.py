@@ -30,7 +30,7 @@ def env_table() -> str:
                 + (" ..." if len(spec.instructions) > 2 else "")
             )
         )
-        start = "3 × 3 grid, 4 yaws" if spec.default_placement == "grid" else "anywhere in a region"
+        start = "3 x 3 grid, 4 yaws" if spec.default_placement == "grid" else "anywhere in a region"
         rows.append(
             f"| {ids} | {spec.summary} | {instruction} | {spec.max_episode_steps} | {start} |"
         )
