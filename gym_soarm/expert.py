@@ -29,6 +29,7 @@ import numpy as np
 from gym_soarm.env import SoArmEnv
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, ScriptedExpert
+from gym_soarm.validation import ArgumentTypeError
 
 EVALUATION_SEEDS = 3
 """Seeds per grid cell and yaw for grid tasks (9 x 4 x 3 = 108 episodes)."""
@@ -53,12 +54,12 @@ def make_expert(env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> Scripted
     """
     base = getattr(env, "unwrapped", None)
     if not isinstance(base, SoArmEnv):
-        raise TypeError(
+        raise ArgumentTypeError(
             "make_expert expects an environment made by gym.make('SoArm-v0') or another "
             f"gym_soarm id; got {type(env).__name__}."
         )
     if not isinstance(config, ExpertConfig):
-        raise TypeError(
+        raise ArgumentTypeError(
             "config must be a gym_soarm.expert.ExpertConfig (e.g. "
             f"ExpertConfig(carry_steps=80)); got {type(config).__name__}."
         )

@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gym_soarm import constants
+from gym_soarm.validation import ArgumentTypeError
 
 RADIANS = "radians"
 LEROBOT = "lerobot"
@@ -178,7 +179,7 @@ def check_wrist_roll_offset(units: str, wrist_roll_offset_deg: object) -> float:
     """
     offset = wrist_roll_offset_deg
     if isinstance(offset, bool) or not isinstance(offset, (int, float, np.integer, np.floating)):
-        raise TypeError(
+        raise ArgumentTypeError(
             f"wrist_roll_offset_deg must be a real number of degrees; got {offset!r} "
             f"({type(offset).__name__}). Pass e.g. wrist_roll_offset_deg=-90.0."
         )

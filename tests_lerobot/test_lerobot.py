@@ -206,3 +206,32 @@ def test_bad_env_config_values():
         SoArmEnvConfig(obs_type="state")
     with pytest.raises(ValueError, match="camera_config"):
         SoArmEnvConfig(camera_config="top_camera")
+
+
+def test_env_config_takes_a_task_defined_outside_the_library():
+    """The task of tests/test_registry.py, registered here: LeRobot reads its layout."""
+    import sys
+
+    import gym_soarm
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    import test_registry
+
+    gym_soarm.register_task(test_registry.SPEC)
+    config = SoArmEnvConfig(
+        task="lift_block",
+        obs_type="environment_state_agent_pos",
+        observation_height=48,
+        observation_width=64,
+    )
+    assert config.task == "LiftBlock-v0" and config.gym_id == "gym_soarm/LiftBlock-v0"
+    features = env_to_policy_features(config)
+    assert tuple(features["observation.environment_state"].shape) == (4,)
+    vector = make_env(config, n_envs=1)["soarm"][0]
+    try:
+        obs, _ = vector.reset(seed=0)
+        assert obs["environment_state"].shape == (1, 4)
+        assert vector.call("task_description")[0] == "Lift the yellow block 3 cm."
+        assert vector.call("state_layout")[0] == (("block_pos", 3), ("block_yaw", 1))
+    finally:
+        vector.close()

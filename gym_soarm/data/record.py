@@ -40,7 +40,7 @@ from gym_soarm import constants
 from gym_soarm.data import LeRobotDatasetWriter
 from gym_soarm.tasks import get_task
 from gym_soarm.units import FEATURE_NAMES, joint_units
-from gym_soarm.validation import parse_size, resolve_camera_config
+from gym_soarm.validation import check_int, parse_size, resolve_camera_config
 
 CAMERA_CONFIG_NONE = "none"
 CAMERA_CONFIG_CHOICES: tuple[str, ...] = (*constants.CAMERA_CONFIGS, CAMERA_CONFIG_NONE)
@@ -132,12 +132,6 @@ def dataset_features(
     return features
 
 
-def _check_int(name: str, value: Any, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ValueError(f"{name} must be an int >= {minimum}; got {value!r}.")
-    return int(value)
-
-
 def record(
     root: str | os.PathLike[str],
     task: str = "LiftCube-v0",
@@ -185,8 +179,8 @@ def record(
     from gym_soarm.expert import make_expert
 
     spec = get_task(task)
-    episodes = _check_int("episodes", episodes, 1)
-    seed = _check_int("seed", seed, 0)
+    episodes = check_int("episodes", episodes, 1)
+    seed = check_int("seed", seed, 0)
     conversion = joint_units(units, wrist_roll_offset_deg)
     if keep not in KEEP_CHOICES:
         raise ValueError(f"keep must be one of {', '.join(KEEP_CHOICES)}; got {keep!r}.")
@@ -199,7 +193,7 @@ def record(
     cameras = () if state_only else resolve_camera_config(camera_config)
     if max_attempts is None:
         max_attempts = 3 * episodes + 10
-    max_attempts = _check_int("max_attempts", max_attempts, episodes)
+    max_attempts = check_int("max_attempts", max_attempts, episodes)
 
     env_kwargs: dict[str, Any] = {
         "units": units,

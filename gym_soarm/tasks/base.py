@@ -29,6 +29,7 @@ import numpy as np
 from gym_soarm import constants
 from gym_soarm.sim.objects import Scene
 from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.validation import ArgumentTypeError
 
 if TYPE_CHECKING:
     from gym_soarm.tasks.scripted import ScriptedExpert
@@ -220,12 +221,14 @@ class TaskSpec:
                 f"a task name ends with its version, e.g. 'StackCube-v0'; got {self.name!r}."
             )
         if not (isinstance(self.task, type) and issubclass(self.task, Task)):
-            raise TypeError(f"task must be a Task subclass; got {self.task!r}.")
+            raise ArgumentTypeError(f"task must be a Task subclass; got {self.task!r}.")
         steps = self.max_episode_steps
         if isinstance(steps, bool) or not isinstance(steps, numbers.Integral) or steps < 1:
             raise ValueError(f"max_episode_steps must be an int >= 1; got {steps!r}.")
         if not isinstance(self.scene, Scene):
-            raise TypeError(f"scene must be a gym_soarm.sim.objects.Scene; got {self.scene!r}.")
+            raise ArgumentTypeError(
+                f"scene must be a gym_soarm.sim.objects.Scene; got {self.scene!r}."
+            )
         object.__setattr__(self, "instructions", tuple(self.instructions))
         if not self.instructions or not all(isinstance(s, str) and s for s in self.instructions):
             raise ValueError(

@@ -12,6 +12,7 @@ from types import MappingProxyType
 from gymnasium.envs.registration import register, registry
 
 from gym_soarm.tasks.base import TaskSpec
+from gym_soarm.validation import ArgumentTypeError
 
 ENTRY_POINT = "gym_soarm.env:SoArmEnv"
 
@@ -37,7 +38,7 @@ def register_task(spec: TaskSpec) -> TaskSpec:
         ValueError: its name, an alias or an id is already taken by another task.
     """
     if not isinstance(spec, TaskSpec):
-        raise TypeError(f"register_task expects a TaskSpec; got {type(spec).__name__}.")
+        raise ArgumentTypeError(f"register_task expects a TaskSpec; got {type(spec).__name__}.")
     if _TASKS.get(spec.name) == spec:
         return spec  # the same module imported twice
     spellings = (spec.name, *spec.aliases, *spec.env_ids)
