@@ -16,6 +16,8 @@ from gym_soarm.tasks.registry import ENV_IDS, get_task, register_task, task_name
 BUILTIN_TASK_MODULES: tuple[str, ...] = (
     "pick_and_place_cube",
     "lift_cube",
+    "reach_target",
+    "push_cube",
 )
 """The built-in task modules, in the order the registry (and the README) lists them."""
 

@@ -1,0 +1,334 @@
+"""``PushCube-v0``: push the blue cube along the table onto the green square.
+
+The scene: the 3 cm blue cube and a green square 7 cm across painted on the table (a
+visual fixture, it never collides). The cube starts anywhere in x in [-0.09, 0.09] m,
+y in [0.27, 0.39] m with a yaw in [0, 90) degrees; the square's centre lies 6 to 12 cm
+from it in a direction drawn uniformly, kept where the arm can push: the square inside
+x in [-0.12, 0.12] m, y in [0.25, 0.42] m, and the spot 5 cm behind the cube (on the
+side away from the square) where the push starts 12 to 27 cm from the shoulder pan
+axis. The square is a fixture, a
+static body of the compiled model: the reset writes its body position into this
+environment's own copy of the model (``physics.model.body_pos``), so nothing is
+recompiled, and every reset sets it, so a seed always gives the same episode.
+
+Success: the cube's centre is over the square, the cube is at rest, neither jaw
+touches it, and it was never lifted: a cube whose bottom rose more than 1 cm above the
+table (checked every control step) makes success impossible for the rest of the
+episode.
+Reward terms are stages: ``reach`` (the closed jaws just behind the cube, on the side
+away from the square) and ``push`` (the cube's progress from where it started towards
+the square; 0.9 once its centre is over the square, 1 at rest there and let go). A lifted cube
+earns no ``push``; success gives every term 1.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from gym_soarm import constants
+from gym_soarm.sim.kinematics import downward_rotation
+from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
+from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.tasks import placement
+from gym_soarm.tasks.base import RewardWeights, Task, TaskSpec, norm, position_field, tolerance
+from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M, CUBE_STATE_FIELDS
+from gym_soarm.tasks.reach_target import NoGraspExpert, move_fixture
+from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase
+
+TARGET_HALF_M = 0.035
+"""Half the side of the green square."""
+TARGET_THICKNESS_M = 0.001
+TARGET = Fixture(
+    name="target",
+    position_m=(0.0, 0.35, 0.0),
+    geoms=(
+        FixtureGeom(
+            "box",
+            (TARGET_HALF_M, TARGET_HALF_M, TARGET_THICKNESS_M / 2),
+            "green",
+            (0.0, 0.0, TARGET_THICKNESS_M / 2),
+            collides=False,
+            emission=0.2,
+        ),
+    ),
+)
+"""A thin green square on the table (visual only: the cube slides on the table beneath)."""
+
+CUBE_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.09, 0.09), (0.27, 0.39))
+TARGET_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.12, 0.12), (0.25, 0.42))
+PUSH_DISTANCE_M: tuple[float, float] = (0.06, 0.12)
+"""How far the square's centre lies from the cube's at reset."""
+PUSH_START_BEHIND_M = 0.05
+"""A push starts this far behind the cube's centre (the jaws and some clearance)."""
+PUSH_START_RADIUS_M: tuple[float, float] = (0.12, 0.27)
+"""Where a push may start: its distance from the shoulder pan axis."""
+PAN_AXIS_XY_M: tuple[float, float] = (0.0, 0.1888)
+"""The shoulder pan axis on the table (the robot's base is at y = 0.15 m, the axis ahead)."""
+MAX_DRAWS = 1000
+
+LIFT_LIMIT_M = 0.01
+"""A cube whose bottom rises above this (m above the table) was lifted, not pushed."""
+RESTING_SPEED_M_S = 0.05
+PUSHER_BEHIND_M: tuple[float, float] = (0.02, 0.05)
+"""Where the reach term wants the centre of the jaws: on the push line, this far (m)
+behind the cube's centre, at the height of the cube's centre."""
+REACH_BOUND_M = 0.015
+REACH_MARGIN_M = 0.10
+OVER_TARGET_CREDIT = 0.9
+"""The push term of a cube over the square that is still moving."""
+
+_JAW_PADS = constants.JAW_PAD_GEOMS
+
+
+def jaw_pads_center(physics: SoArmPhysics) -> np.ndarray:
+    """World position (m) midway between the two jaw pads: the centre of closed jaws."""
+    model = physics.model.ptr
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name) for name in _JAW_PADS]
+    xpos = physics.data.ptr.geom_xpos
+    return (xpos[ids[0]] + xpos[ids[1]]) / 2
+
+
+def draw_push(rng: np.random.Generator) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The cube's (x, y) and the square's (x, y), a pushable 6-12 cm apart.
+
+    Draws the cube's position, a direction and a distance until the square lies in
+    :data:`TARGET_REGION_M` and the push starts within :data:`PUSH_START_RADIUS_M`.
+
+    Raises:
+        RuntimeError: no pushable layout after :data:`MAX_DRAWS` draws.
+    """
+    (tx0, tx1), (ty0, ty1) = TARGET_REGION_M
+    r0, r1 = PUSH_START_RADIUS_M
+    for _ in range(MAX_DRAWS):
+        ((cx, cy),) = placement.draw_uniform_positions(
+            rng, (CUBE.footprint_radius_m,), CUBE_REGION_M
+        )
+        heading = float(rng.uniform(0.0, math.tau))
+        distance = float(rng.uniform(*PUSH_DISTANCE_M))
+        ux, uy = math.cos(heading), math.sin(heading)
+        tx, ty = cx + distance * ux, cy + distance * uy
+        sx, sy = cx - PUSH_START_BEHIND_M * ux, cy - PUSH_START_BEHIND_M * uy
+        radius = math.hypot(sx - PAN_AXIS_XY_M[0], sy - PAN_AXIS_XY_M[1])
+        if tx0 <= tx <= tx1 and ty0 <= ty <= ty1 and r0 <= radius <= r1:
+            return (cx, cy), (tx, ty)
+    raise RuntimeError(f"no pushable cube and square layout after {MAX_DRAWS} draws.")
+
+
+class PushTask(Task):
+    """Push the cube over the green square without lifting it."""
+
+    weights = RewardWeights({"reach": 0.3, "push": 0.7})
+    state_fields: ClassVar = (*CUBE_STATE_FIELDS, position_field("target_pos", "target"))
+    cube = CUBE.name
+
+    def __init__(self, spec: TaskSpec) -> None:
+        super().__init__(spec)
+        self._start_distance = 1.0
+        self._direction = np.array([0.0, 1.0])
+        self._max_height = 0.0
+
+    def initialize_episode(
+        self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
+    ) -> None:
+        physics.reset_to_home()
+        (cx, cy), (tx, ty) = draw_push(rng)
+        yaw = float(rng.uniform(0.0, 90.0))
+        physics.set_object_pose(
+            self.cube,
+            np.array([cx, cy, constants.TABLE_TOP_Z_M + CUBE_HALF_M]),
+            placement.yaw_quaternion(yaw),
+        )
+        move_fixture(physics, TARGET.name, np.array([tx, ty, constants.TABLE_TOP_Z_M]))
+        offset = np.array([tx - cx, ty - cy])
+        self._start_distance = norm(offset)
+        self._direction = offset / self._start_distance
+        self._max_height = 0.0
+
+    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
+        position, quaternion = physics.object_pose(self.cube)
+        return np.concatenate(
+            [
+                position,
+                quaternion,
+                physics.gripper_position(),
+                physics.fixture_position(TARGET.name),
+            ]
+        )
+
+    # --- episode bookkeeping --------------------------------------------------------
+    def _lifted(self, physics: SoArmPhysics) -> bool:
+        """Whether the cube has been lifted above the limit this episode (updates the record)."""
+        self._max_height = max(self._max_height, physics.object_height(self.cube))
+        return self._max_height > LIFT_LIMIT_M
+
+    def _offset_to_target(self, physics: SoArmPhysics) -> np.ndarray:
+        """Horizontal offset (m) from the cube's centre to the square's centre."""
+        return physics.fixture_position(TARGET.name)[:2] - physics.object_position(self.cube)[:2]
+
+    @staticmethod
+    def _over_target(offset: np.ndarray) -> bool:
+        return abs(float(offset[0])) <= TARGET_HALF_M and abs(float(offset[1])) <= TARGET_HALF_M
+
+    def is_success(self, physics: SoArmPhysics) -> bool:
+        if self._lifted(physics):
+            return False
+        return (
+            self._over_target(self._offset_to_target(physics))
+            and physics.object_speed(self.cube) < RESTING_SPEED_M_S
+            and not physics.touched_by_jaws(self.cube)
+        )
+
+    def _reach(self, physics: SoArmPhysics) -> float:
+        """Closeness of the jaws to the stretch of the push line just behind the cube."""
+        cube = physics.object_position(self.cube)
+        jaws = jaw_pads_center(physics)
+        # How far behind the cube's centre the jaws are, along the push, kept to the stretch.
+        behind = float((cube[:2] - jaws[:2]) @ self._direction)
+        behind = min(max(behind, PUSHER_BEHIND_M[0]), PUSHER_BEHIND_M[1])
+        spot = cube
+        spot[:2] -= behind * self._direction
+        return tolerance(norm(jaws - spot), REACH_BOUND_M, REACH_MARGIN_M)
+
+    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
+        if self.is_success(physics) if success is None else success:
+            return dict.fromkeys(self.weights.terms, 1.0)
+        if self._lifted(physics):
+            return {"reach": self._reach(physics), "push": 0.0}
+        offset = self._offset_to_target(physics)
+        if self._over_target(offset):
+            return {"reach": 1.0, "push": OVER_TARGET_CREDIT}
+        # Progress from the start towards the square's edge (reached when over it).
+        to_go = max(norm(offset) - TARGET_HALF_M, 0.0)
+        progress = 1.0 - to_go / (self._start_distance - TARGET_HALF_M)
+        push = OVER_TARGET_CREDIT * min(max(progress, 0.0), 1.0)
+        return {"reach": self._reach(physics), "push": push}
+
+    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+        return {
+            "target_pos": [float(v) for v in physics.fixture_position(TARGET.name)],
+            "cube_pos": [float(v) for v in physics.object_position(self.cube)],
+            "cube_lifted": self._lifted(physics),
+        }
+
+
+# --- the expert -------------------------------------------------------------------------
+# How far the leading face of the closed jaws is ahead of the grasp_center site along
+# the push: the fixed jaw's outer face lies 18 mm along the gripper's -x axis; the
+# moving jaw's pad lies 1 mm behind the site on its +x axis, and tilted, so that it
+# meets the cube about 4 mm ahead of the site (measured: pushes end centred).
+FIXED_FACE_AHEAD_M = 0.018
+MOVING_FACE_AHEAD_M = 0.004
+PUSH_HEIGHT_M = 0.019
+"""Height of grasp_center while pushing: the pads meet the cube round its middle."""
+PUSH_CLEARANCE_M = 0.015
+"""Gap between the leading jaw and the cube as the jaws come down behind it."""
+TOUCH_GAP_M = 0.003
+"""The jaws slow to a stop this short of the cube, so the push starts gently."""
+HOVER_ABOVE_M = 0.04
+BACK_OFF_M = 0.02
+"""After the push the jaws draw back this far from the cube as they rise."""
+
+
+class PushExpert(NoGraspExpert):
+    """Close the jaws, come down behind the cube, push it in a line onto the square, back off.
+
+    No grasp: the approach is a joint move to a hover behind the cube, then a straight
+    descent, a straight push that brings the cube's centre to the square's centre, a
+    short hold and a retreat up and back.
+    """
+
+    touch_steps = 12
+    push_steps = 75
+    settle_steps = 5
+
+    def __init__(self, env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> None:
+        super().__init__(env, config)
+        self._push_start = np.zeros(3)
+        self._push_touch = np.zeros(3)
+        self._push_end = np.zeros(3)
+        self._push_direction = np.array([0.0, 1.0])
+
+    def _after_grasp_phases(self) -> list[Phase]:
+        c = self.config
+        return [
+            Phase("approach", c.approach_steps, self._begin_approach_push),
+            Phase("descend", c.descend_steps, self._begin_descend_push),
+            Phase("touch", self.touch_steps, self._begin_touch),
+            Phase("push", self.push_steps, self._begin_push),
+            Phase("settle", self.settle_steps, self._hold_arm),
+            Phase("retreat", c.retreat_steps, self._begin_back_off),
+        ]
+
+    def _plan_push(self) -> None:
+        """The push line and the jaws' yaw, from the cube and the square as they are now."""
+        physics = self.env.physics
+        cube = physics.object_position(self.grasp_object())
+        target = physics.fixture_position(TARGET.name)
+        offset = target[:2] - cube[:2]
+        direction = offset / norm(offset)
+        heading = math.atan2(direction[1], direction[0])
+        # How far the cube reaches towards the jaws, along the push.
+        turn = physics.object_yaw(self.grasp_object()) - heading
+        extent = CUBE_HALF_M * (abs(math.cos(turn)) + abs(math.sin(turn)))
+        # Lead with the fixed jaw (the gripper's -x axis along the push) or the moving jaw
+        # (its +x axis), whichever the wrist reaches with less roll.
+        best = None
+        for yaw, ahead in ((heading + math.pi, FIXED_FACE_AHEAD_M), (heading, MOVING_FACE_AHEAD_M)):
+            start = cube.copy()
+            start[:2] -= (extent + ahead + PUSH_CLEARANCE_M) * direction
+            start[2] = PUSH_HEIGHT_M
+            q, position_error, rotation_error = self._kinematics.solve(
+                self._seed_towards(start), start, downward_rotation(yaw)
+            )
+            cost = abs(q[self._roll]) + 100.0 * (position_error + rotation_error)
+            if best is None or cost < best[0]:
+                best = (cost, yaw, ahead, start)
+        _, self._yaw, ahead, self._push_start = best
+        self._push_touch = self._push_start.copy()
+        self._push_touch[:2] += (PUSH_CLEARANCE_M - TOUCH_GAP_M) * direction
+        # The push ends with the cube's centre on the square's, a face square to the jaws.
+        end = target.copy()
+        end[:2] -= (CUBE_HALF_M + ahead) * direction
+        end[2] = PUSH_HEIGHT_M
+        self._push_end = end
+        self._push_direction = direction
+
+    def _begin_approach_push(self) -> None:
+        self._plan_push()
+        hover = self._push_start.copy()
+        hover[2] += HOVER_ABOVE_M
+        self._swing_to(hover, self._yaw)
+
+    def _begin_descend_push(self) -> None:
+        self._line_move(self._push_start, self._yaw)
+
+    def _begin_touch(self) -> None:
+        self._line_move(self._push_touch, self._yaw)
+
+    def _begin_push(self) -> None:
+        self._line_move(self._push_end, self._yaw)
+
+    def _begin_back_off(self) -> None:
+        site, _ = self._kinematics.site_pose(self._command[: self._n_arm])
+        site[:2] -= BACK_OFF_M * self._push_direction
+        site[2] = self.config.hover_height_m
+        self._line_move(site, self._yaw)
+
+
+SPEC = TaskSpec(
+    name="PushCube-v0",
+    task=PushTask,
+    expert=PushExpert,
+    max_episode_steps=250,
+    scene=Scene(objects=(CUBE,), fixtures=(TARGET,)),
+    instructions=("Push the blue cube onto the green square without lifting it.",),
+    summary="push the cube along the table onto the green square",
+    default_placement="uniform",
+    aliases=("push",),
+)

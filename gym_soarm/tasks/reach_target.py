@@ -1,0 +1,196 @@
+"""``ReachTarget-v0``: bring the jaws to a red ball floating above the table.
+
+The scene holds no free object, only the target: a red ball 3 cm across (the cube's
+size, so that the 320 x 240 cameras see it) that is a visual marker: it never
+collides, the jaws pass through it. At every reset it moves to a new spot drawn
+uniformly in the box x in [-0.10, 0.10] m, y in [0.31, 0.43] m and centre height
+z in [0.025, 0.12] m, which the jaws reach pointing down (nearer the shoulder, within
+12 cm of its pan axis, they cannot reach high targets). The target is a fixture, a
+static body of the compiled model: the reset writes its body position into this
+environment's own copy of the model (``physics.model.body_pos``), so nothing is
+recompiled, and every reset sets it, so a seed always gives the same episode.
+
+Success: the ``grasp_center`` site (where a held object's centre sits, between the
+jaws) is within 1 cm of the ball's centre; the episode ends there.
+Reward term: ``reach``, 1 within that centimetre, falling smoothly with the distance
+beyond it (to 0.1 at 11 cm).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+
+from gym_soarm.sim.kinematics import downward_rotation
+from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
+from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.tasks.base import (
+    RewardWeights,
+    Task,
+    TaskSpec,
+    norm,
+    position_field,
+    tolerance,
+)
+from gym_soarm.tasks.scripted import Phase, ScriptedExpert
+
+TARGET_RADIUS_M = 0.015
+"""The ball is as wide as the cube: smaller, it is a few pixels of a 320 x 240 camera."""
+SUCCESS_DISTANCE_M = 0.01
+"""The jaws' centre must come this close to the target's centre."""
+REACH_MARGIN_M = 0.10
+TARGET_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.10, 0.10), (0.31, 0.43))
+"""Where the target's (x, y) is drawn: 12 to 26 cm from the shoulder pan axis (at
+y = 0.189 m), where the jaws reach every height of :data:`TARGET_HEIGHT_M` pointing down."""
+TARGET_HEIGHT_M: tuple[float, float] = (0.025, 0.12)
+"""The range the target's centre height (above the table top) is drawn from."""
+TARGET_DEFAULT_M = (0.0, 0.35, 0.07)
+"""Where the target sits in the compiled model, before the first reset moves it."""
+
+TARGET = Fixture(
+    name="target",
+    position_m=TARGET_DEFAULT_M,
+    geoms=(FixtureGeom("sphere", (TARGET_RADIUS_M,), "red", collides=False, emission=0.3),),
+)
+"""A red ball, visual only; its site (the point reached for) is its centre."""
+
+
+def move_fixture(physics: SoArmPhysics, name: str, position: np.ndarray) -> None:
+    """Put static fixture ``name``'s body at ``position`` (world frame, m).
+
+    Only inside a reset context: the body position is a model parameter (this
+    environment's own copy of the model), read by the forward kinematics the reset
+    ends with.
+
+    Raises:
+        ValueError: the scene has no fixture ``name``, or it moves on a joint or hangs
+            from another fixture (its body position is then not a world position).
+    """
+    fixture = next((f for f in physics.layout.fixtures if f.name == name), None)
+    if fixture is None:
+        raise ValueError(
+            f"this scene has no fixture {name!r}; its fixtures are {list(physics.fixture_names)}."
+        )
+    if fixture.joint is not None or fixture.parent is not None:
+        raise ValueError(
+            f"fixture {name!r} moves on a joint or hangs from another fixture; only a "
+            "fixture fixed to the world can be moved to a world position."
+        )
+    physics.model.ptr.body(name).pos[:] = position
+
+
+class ReachTask(Task):
+    """Touch the floating red target with the centre of the jaws."""
+
+    weights = RewardWeights({"reach": 1.0})
+    state_fields: ClassVar = (
+        position_field("target_pos", "target"),
+        position_field("gripper_pos", "gripper"),
+    )
+
+    def initialize_episode(
+        self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
+    ) -> None:
+        physics.reset_to_home()
+        (x0, x1), (y0, y1) = TARGET_REGION_M
+        z0, z1 = TARGET_HEIGHT_M
+        move_fixture(physics, TARGET.name, rng.uniform((x0, y0, z0), (x1, y1, z1)))
+
+    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
+        return np.concatenate([physics.fixture_position(TARGET.name), physics.gripper_position()])
+
+    def _distance(self, physics: SoArmPhysics) -> float:
+        return norm(physics.grasp_center() - physics.fixture_position(TARGET.name))
+
+    def is_success(self, physics: SoArmPhysics) -> bool:
+        return self._distance(physics) <= SUCCESS_DISTANCE_M
+
+    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
+        # 1 exactly when successful: the tolerance is 1 within the success distance.
+        return {"reach": tolerance(self._distance(physics), SUCCESS_DISTANCE_M, REACH_MARGIN_M)}
+
+    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+        return {
+            "target_pos": [float(v) for v in physics.fixture_position(TARGET.name)],
+            "target_distance": self._distance(physics),
+        }
+
+
+HOVER_ABOVE_M = 0.04
+"""The expert first comes to rest this far straight above the target."""
+
+
+class NoGraspExpert(ScriptedExpert):
+    """Base of the experts that grasp nothing: their phases start with :meth:`_swing_to`.
+
+    A generic helper of this module (``PushCube-v0``'s expert builds on it too).
+    """
+
+    def _grasp_phases(self) -> list[Phase]:
+        return []
+
+    def _swing_to(self, position: np.ndarray, yaw: float) -> None:
+        """Joint move of ``grasp_center`` to ``position``, jaws down at ``yaw`` and closed.
+
+        The phase lasts as long as the largest joint turn needs at
+        ``config.approach_speed_rad_per_step``, within ``config.rise_steps`` and
+        ``config.approach_steps``.
+        """
+        config = self.config
+        self._yaw = yaw
+        goal, _, _ = self._kinematics.solve(
+            self._seed_towards(position), position, downward_rotation(yaw)
+        )
+        distance = float(np.abs(goal - self._command[: self._n_arm]).max())
+        steps = math.ceil(distance / config.approach_speed_rad_per_step)
+        self._phase_length = min(max(steps, config.rise_steps), config.approach_steps)
+        self._joint_move(goal)
+        self._gripper(config.gripper_closed_rad)
+
+
+class ReachExpert(NoGraspExpert):
+    """Swing the closed jaws (pointing down) over the target, lower them onto it, and hold.
+
+    The approach is a joint move to a hover above the target and the reach a straight
+    line of ``grasp_center`` down to the target's centre.
+    """
+
+    def _after_grasp_phases(self) -> list[Phase]:
+        c = self.config
+        return [
+            Phase("approach", c.approach_steps, self._begin_hover),
+            Phase("reach", c.descend_steps, self._begin_reach),
+            Phase("hold", c.hold_steps, self._hold_arm),
+        ]
+
+    def _target(self) -> np.ndarray:
+        return self.env.physics.fixture_position(TARGET.name)
+
+    def _natural_yaw(self, position: np.ndarray) -> float:
+        """The jaws' yaw with the wrist unrolled, the arm turned towards ``position``."""
+        _, rotation = self._kinematics.site_pose(self._seed_towards(position))
+        return math.atan2(rotation[1, 0], rotation[0, 0])
+
+    def _begin_hover(self) -> None:
+        hover = self._target()
+        hover[2] += HOVER_ABOVE_M
+        self._swing_to(hover, self._natural_yaw(hover))
+
+    def _begin_reach(self) -> None:
+        self._line_move(self._target(), self._yaw)
+
+
+SPEC = TaskSpec(
+    name="ReachTarget-v0",
+    task=ReachTask,
+    expert=ReachExpert,
+    max_episode_steps=120,
+    scene=Scene(fixtures=(TARGET,)),
+    instructions=("Move the gripper to the red ball.",),
+    summary="move the jaws' centre to a red ball above the table",
+    default_placement="uniform",
+    aliases=("reach",),
+)
