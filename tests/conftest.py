@@ -9,17 +9,10 @@ import pytest
 import gym_soarm
 
 SMALL = {"observation_height": 48, "observation_width": 64}
-# Keys every reset and step info holds.
-INFO_KEYS = {
-    "is_success",
-    "cube_grid_position",
-    "cube_rotation_deg",
-    "cube_pos",
-    "gripper_pos",
-    "reward_terms",
-    "task",
-    "physics_unstable",
-}
+# Keys every task's reset and step info holds; each task adds its own.
+COMMON_INFO_KEYS = {"is_success", "gripper_pos", "reward_terms", "task", "physics_unstable"}
+# The keys of the grid tasks (SoArm-v0, pick-and-place and lift).
+INFO_KEYS = COMMON_INFO_KEYS | {"cube_grid_position", "cube_rotation_deg", "cube_pos"}
 
 
 def colour_counts(image: np.ndarray) -> dict[str, int]:
