@@ -13,7 +13,6 @@ from gym_soarm.tasks.reach_target import (
     SUCCESS_DISTANCE_M,
     TARGET_HEIGHT_M,
     TARGET_REGION_M,
-    move_fixture,
 )
 
 ENV_ID = gym_soarm.get_task("ReachTarget-v0").env_id
@@ -64,10 +63,10 @@ def test_success_is_the_jaws_within_a_centimetre_and_ends_the_episode(env):
     assert distances[-1] <= SUCCESS_DISTANCE_M < min(distances[:-1])
 
 
-def test_move_fixture_names_what_it_expects(env):
+def test_moving_an_unknown_fixture_names_what_it_expects(env):
     env.reset(seed=0)
     with pytest.raises(ValueError, match="no fixture 'bin'"):
-        move_fixture(env.unwrapped.physics, "bin", np.zeros(3))
+        env.unwrapped.physics.set_fixture_position("bin", np.zeros(3))
 
 
 def test_the_front_camera_sees_the_target_at_every_reset():

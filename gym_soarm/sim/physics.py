@@ -384,6 +384,25 @@ class SoArmPhysics(dm_mujoco.Physics):
         """World position (m) of fixture ``name``'s site (the point a task aims at)."""
         return self._fixture(name).xpos.copy()
 
+    def set_fixture_position(self, name: str, position: np.ndarray) -> None:
+        """Put fixed fixture ``name``'s body at world ``position`` (m), in a reset context.
+
+        The body position is a parameter of this environment's own copy of the model, so
+        nothing is recompiled; the forward kinematics at the end of the reset place it.
+
+        Raises:
+            ValueError: no fixture ``name``, or it moves on a joint or hangs from another
+                fixture (its body position is then not a world position).
+        """
+        index = self._fixture(name)
+        fixture = next(f for f in self.layout.fixtures if f.name == name)
+        if fixture.joint is not None or fixture.parent is not None:
+            raise ValueError(
+                f"fixture {name!r} moves on a joint or hangs from another fixture; only a "
+                "fixture fixed to the world can be moved to a world position."
+            )
+        self._mj_model.body_pos[index.body] = position
+
     def fixture_joint_position(self, name: str) -> float:
         """Position of fixture ``name``'s joint (m for a slide, rad for a hinge)."""
         index = self._fixture(name)

@@ -38,7 +38,7 @@ from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import RewardWeights, Task, TaskSpec, norm, position_field, tolerance
 from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M, CUBE_STATE_FIELDS
-from gym_soarm.tasks.reach_target import NoGraspExpert, move_fixture
+from gym_soarm.tasks.reach_target import NoGraspExpert
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase
 
 TARGET_HALF_M = 0.035
@@ -144,7 +144,7 @@ class PushTask(Task):
             np.array([cx, cy, constants.TABLE_TOP_Z_M + CUBE_HALF_M]),
             placement.yaw_quaternion(yaw),
         )
-        move_fixture(physics, TARGET.name, np.array([tx, ty, constants.TABLE_TOP_Z_M]))
+        physics.set_fixture_position(TARGET.name, np.array([tx, ty, constants.TABLE_TOP_Z_M]))
         offset = np.array([tx - cx, ty - cy])
         self._start_distance = norm(offset)
         self._direction = offset / self._start_distance

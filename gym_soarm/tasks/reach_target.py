@@ -58,30 +58,6 @@ TARGET = Fixture(
 """A red ball, visual only; its site (the point reached for) is its centre."""
 
 
-def move_fixture(physics: SoArmPhysics, name: str, position: np.ndarray) -> None:
-    """Put static fixture ``name``'s body at ``position`` (world frame, m).
-
-    Only inside a reset context: the body position is a model parameter (this
-    environment's own copy of the model), read by the forward kinematics the reset
-    ends with.
-
-    Raises:
-        ValueError: the scene has no fixture ``name``, or it moves on a joint or hangs
-            from another fixture (its body position is then not a world position).
-    """
-    fixture = next((f for f in physics.layout.fixtures if f.name == name), None)
-    if fixture is None:
-        raise ValueError(
-            f"this scene has no fixture {name!r}; its fixtures are {list(physics.fixture_names)}."
-        )
-    if fixture.joint is not None or fixture.parent is not None:
-        raise ValueError(
-            f"fixture {name!r} moves on a joint or hangs from another fixture; only a "
-            "fixture fixed to the world can be moved to a world position."
-        )
-    physics.model.ptr.body(name).pos[:] = position
-
-
 class ReachTask(Task):
     """Touch the floating red target with the centre of the jaws."""
 
@@ -97,7 +73,7 @@ class ReachTask(Task):
         physics.reset_to_home()
         (x0, x1), (y0, y1) = TARGET_REGION_M
         z0, z1 = TARGET_HEIGHT_M
-        move_fixture(physics, TARGET.name, rng.uniform((x0, y0, z0), (x1, y1, z1)))
+        physics.set_fixture_position(TARGET.name, rng.uniform((x0, y0, z0), (x1, y1, z1)))
 
     def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
         return np.concatenate([physics.fixture_position(TARGET.name), physics.gripper_position()])
