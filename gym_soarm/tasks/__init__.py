@@ -18,6 +18,8 @@ BUILTIN_TASK_MODULES: tuple[str, ...] = (
     "lift_cube",
     "reach_target",
     "push_cube",
+    "stack_cube",
+    "place_in_bin",
 )
 """The built-in task modules, in the order the registry (and the README) lists them."""
 

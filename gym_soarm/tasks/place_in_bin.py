@@ -1,0 +1,260 @@
+"""``PlaceInBin-v0``: put the blue cube into the open box (the bin) on the table.
+
+Scene: the bin, fixed to the table to the arm's right (centred at x = 0.15 m,
+y = 0.30 m): a 3 mm floor plate and four 4 mm walls around an 8 x 8 cm inside, its rim
+4 cm above the table; every part of it collides. And the 3 cm, 20 g blue cube, placed
+uniformly at random with a random yaw in [0°, 90°) in the region the arm reaches well
+(x in [-0.12, 0.12] m, y in [0.25, 0.40] m), 3 cm clear of the bin and 5 cm to either
+side of x = 0, where the arm's home pose hides it from the overview camera.
+
+Success: the whole cube lies inside the bin's inner footprint with its top below the
+rim, resting on the bin (touching it), neither jaw touches it and it is at rest (speed
+below 0.05 m/s).
+
+Reward terms are stages — ``reach`` (jaws near the cube), ``grasp`` (both pads on it),
+``lift`` (its height towards 5 cm while held), ``place`` (carried over the bin, then
+lowered into it, then released) — and a later stage counts every earlier one as
+complete, so the reward never falls as the task progresses.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+
+from gym_soarm import constants
+from gym_soarm.sim.kinematics import downward_rotation
+from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
+from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.tasks import placement
+from gym_soarm.tasks.base import (
+    RewardWeights,
+    Task,
+    TaskSpec,
+    norm,
+    position_field,
+    quaternion_field,
+    tolerance,
+)
+from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M
+from gym_soarm.tasks.scripted import PlaceExpert
+from gym_soarm.tasks.stack_cube import draw_beside_arm
+
+BIN_POSITION_M: tuple[float, float, float] = (0.15, 0.30, 0.0)
+"""Where the bin stands: the centre of its floor plate's underside, on the table."""
+BIN_INNER_HALF_M = 0.04
+"""Half the inside width of the bin (the inside is 8 x 8 cm)."""
+BIN_WALL_M = 0.004
+"""Thickness of the walls."""
+BIN_FLOOR_M = 0.003
+"""Thickness of the floor plate (the cube rests on it)."""
+BIN_RIM_Z_M = 0.04
+"""Height of the walls' top above the table."""
+BIN_COLOUR = "white"
+_OUTER_HALF_M = BIN_INNER_HALF_M + BIN_WALL_M
+_WALL_HALF_HEIGHT_M = (BIN_RIM_Z_M - BIN_FLOOR_M) / 2
+_WALL_Z_M = BIN_FLOOR_M + _WALL_HALF_HEIGHT_M
+_WALL_OFFSET_M = BIN_INNER_HALF_M + BIN_WALL_M / 2
+
+
+def _bin_geoms() -> tuple[FixtureGeom, ...]:
+    """The floor plate and the four walls, in the bin's frame."""
+    floor = FixtureGeom(
+        "box",
+        (_OUTER_HALF_M, _OUTER_HALF_M, BIN_FLOOR_M / 2),
+        BIN_COLOUR,
+        (0.0, 0.0, BIN_FLOOR_M / 2),
+    )
+    # The walls along y span the full outer width; those along x fit between them.
+    along_x = (BIN_WALL_M / 2, _OUTER_HALF_M, _WALL_HALF_HEIGHT_M)
+    along_y = (BIN_INNER_HALF_M, BIN_WALL_M / 2, _WALL_HALF_HEIGHT_M)
+    walls = (
+        FixtureGeom("box", along_x, BIN_COLOUR, (_WALL_OFFSET_M, 0.0, _WALL_Z_M), emission=0.1),
+        FixtureGeom("box", along_x, BIN_COLOUR, (-_WALL_OFFSET_M, 0.0, _WALL_Z_M), emission=0.1),
+        FixtureGeom("box", along_y, BIN_COLOUR, (0.0, _WALL_OFFSET_M, _WALL_Z_M), emission=0.1),
+        FixtureGeom("box", along_y, BIN_COLOUR, (0.0, -_WALL_OFFSET_M, _WALL_Z_M), emission=0.1),
+    )
+    return (floor, *walls)
+
+
+BIN = Fixture(
+    name="bin",
+    position_m=BIN_POSITION_M,
+    geoms=_bin_geoms(),
+    site_m=(0.0, 0.0, BIN_FLOOR_M),
+)
+"""The open box, fixed to the table; its site is the centre of the floor's top."""
+
+START_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.12, 0.12), (0.25, 0.40))
+"""Where the cube's centre starts: ((x_min, x_max), (y_min, y_max)), clear of the bin."""
+BIN_CLEARANCE_M = 0.03
+"""Free space kept between the cube's footprint and the bin's at the start (the jaws')."""
+START_YAW_DEG: tuple[float, float] = (0.0, 90.0)
+RESTING_SPEED_M_S = 0.05
+REACH_MARGIN_M = 0.10
+LIFT_HEIGHT_M = 0.05
+"""The height (of its bottom) at which a held cube counts as lifted."""
+OVER_BIN_RADIUS_M = 0.02
+"""A cube centre this close (horizontally) to the bin's centre counts as over the bin."""
+PLACE_MARGIN_M = 0.20
+# Share of the place term earned by carrying the held cube over the bin, and by a cube in
+# the bin that is still held or moving; the release earns the rest.
+PLACE_CARRY_CREDIT = 0.8
+PLACE_IN_BIN_CREDIT = 0.9
+CARRY_RIM_CLEARANCE_M = 0.02
+"""Height of the held cube's bottom above the rim while carried."""
+RELEASE_GRIPPER_RAD = 0.4
+"""Gripper target for the release inside the bin: open enough to let go, clear of walls."""
+
+
+class PlaceInBinTask(Task):
+    """Put the cube into the bin, released and at rest."""
+
+    weights = RewardWeights({"reach": 0.1, "grasp": 0.2, "lift": 0.3, "place": 0.4})
+    state_fields: ClassVar = (
+        position_field("cube_pos", "cube"),
+        quaternion_field("cube_quat_wxyz", "cube"),
+        position_field("gripper_pos", "gripper"),
+        position_field("bin_pos", "bin"),
+    )
+    cube = CUBE.name
+
+    def initialize_episode(
+        self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
+    ) -> None:
+        """Home the arm and put the cube at a free spot clear of the bin, at a random yaw."""
+        physics.reset_to_home()
+        bin_x, bin_y, _ = BIN_POSITION_M
+        keep_clear = ((bin_x, bin_y, math.hypot(_OUTER_HALF_M, _OUTER_HALF_M)),)
+        ((x, y),) = draw_beside_arm(
+            rng,
+            [CUBE.footprint_radius_m],
+            START_REGION_M,
+            keep_clear=keep_clear,
+            gap_m=BIN_CLEARANCE_M,
+        )
+        yaw = float(rng.uniform(*START_YAW_DEG))
+        physics.set_object_pose(
+            self.cube,
+            np.array([x, y, constants.TABLE_TOP_Z_M + CUBE.rest_height_m]),
+            placement.yaw_quaternion(yaw),
+        )
+
+    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
+        position, quaternion = physics.object_pose(self.cube)
+        return np.concatenate(
+            [position, quaternion, physics.gripper_position(), physics.fixture_position("bin")]
+        )
+
+    # --- geometry of the bin -----------------------------------------------------------
+    def _bin_offset(self, physics: SoArmPhysics) -> tuple[float, float]:
+        """(x, y) of the cube's centre relative to the bin's centre (m)."""
+        cx, cy, _ = physics.object_position(self.cube).tolist()
+        bx, by, _ = physics.fixture_position("bin").tolist()
+        return cx - bx, cy - by
+
+    def _in_bin(self, physics: SoArmPhysics, dx: float, dy: float) -> bool:
+        """The whole cube lies inside the bin's inner footprint, its top below the rim."""
+        w, x, y, z = physics.object_quaternion(self.cube).tolist()
+        # Rows of the cube's rotation matrix: its half extents along world x, y and z.
+        r0 = (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y))
+        r1 = (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x))
+        r2 = (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
+        reach_x = CUBE_HALF_M * sum(abs(v) for v in r0)
+        reach_y = CUBE_HALF_M * sum(abs(v) for v in r1)
+        reach_z = CUBE_HALF_M * sum(abs(v) for v in r2)
+        if abs(dx) + reach_x > BIN_INNER_HALF_M or abs(dy) + reach_y > BIN_INNER_HALF_M:
+            return False
+        top = physics.object_position(self.cube)[2] + reach_z - constants.TABLE_TOP_Z_M
+        return top < BIN_RIM_Z_M
+
+    def is_success(self, physics: SoArmPhysics) -> bool:
+        return (
+            self._in_bin(physics, *self._bin_offset(physics))
+            and physics.touching(self.cube, "bin")
+            and not physics.touched_by_jaws(self.cube)
+            and physics.object_speed(self.cube) < RESTING_SPEED_M_S
+        )
+
+    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
+        if self.is_success(physics) if success is None else success:
+            return dict.fromkeys(self.weights.terms, 1.0)
+        dx, dy = self._bin_offset(physics)
+        if self._in_bin(physics, dx, dy):
+            # In the bin but still held or moving: only the release is missing.
+            return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACE_IN_BIN_CREDIT}
+        if not physics.grasped(self.cube):
+            distance = norm(physics.grasp_center() - physics.object_position(self.cube))
+            reach = tolerance(distance, 0.01, REACH_MARGIN_M)
+            return {"reach": reach, "grasp": 0.0, "lift": 0.0, "place": 0.0}
+        # A held cube over the bin counts as lifted, so lowering it into the bin loses nothing.
+        offset = math.hypot(dx, dy)
+        if offset <= OVER_BIN_RADIUS_M:
+            lift = 1.0
+        else:
+            lift = min(max(physics.object_height(self.cube) / LIFT_HEIGHT_M, 0.0), 1.0)
+        over_bin = tolerance(offset, OVER_BIN_RADIUS_M, PLACE_MARGIN_M)
+        return {
+            "reach": 1.0,
+            "grasp": 1.0,
+            "lift": lift,
+            "place": PLACE_CARRY_CREDIT * over_bin * lift,
+        }
+
+    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+        return {
+            "cube_pos": physics.object_position(self.cube).tolist(),
+            "target_pos": physics.fixture_position("bin").tolist(),
+        }
+
+
+class PlaceInBinExpert(PlaceExpert):
+    """Lift the cube, carry it over the bin above the rim, lower it in, release and rise."""
+
+    def place_target(self) -> np.ndarray:
+        target = self.env.physics.fixture_position("bin")
+        target[2] += CUBE_HALF_M
+        return target
+
+    def _begin_carry(self) -> None:
+        if not self._holding():
+            return
+        target = self.place_target()
+        # The held cube's bottom (and the jaw tips just above it) pass over the rim.
+        carry = max(
+            self.config.carry_height_m,
+            constants.TABLE_TOP_Z_M + BIN_RIM_Z_M + CARRY_RIM_CLEARANCE_M + CUBE_HALF_M,
+        )
+        self._arc_move(self._site_target(np.array([target[0], target[1], carry])))
+
+    def _release_opening(self) -> float:
+        return min(RELEASE_GRIPPER_RAD, self.config.gripper_open_rad)
+
+    def _begin_release(self) -> None:
+        self._hold_arm()
+        self._gripper(self._release_opening())
+
+    def _begin_retreat(self) -> None:
+        # Slide the fixed jaw just off the cube's face (the half-open moving jaw stays clear
+        # of the cube's other face), then rise out of the bin with the jaws as released.
+        site, _ = self._kinematics.site_pose(self._command[: self._n_arm])
+        closing_axis = downward_rotation(self._yaw)[:, 0]
+        target = site - self.config.fixed_jaw_clearance_m * closing_axis
+        target[2] = max(self.config.retreat_height_m, site[2])
+        self._line_move(target, self._yaw)
+        self._gripper(self._release_opening())
+
+
+SPEC = TaskSpec(
+    name="PlaceInBin-v0",
+    task=PlaceInBinTask,
+    expert=PlaceInBinExpert,
+    max_episode_steps=400,
+    scene=Scene(objects=(CUBE,), fixtures=(BIN,)),
+    instructions=("Pick up the blue cube and put it in the bin.",),
+    summary="put the cube into the open box",
+    aliases=("bin", "place_in_bin"),
+)

@@ -1,0 +1,283 @@
+"""``StackCube-v0``: put the red cube on top of the blue cube.
+
+Scene: a red and a blue 3 cm, 20 g cube, placed uniformly at random (never overlapping,
+with room for the jaws between them) in the region the arm reaches well — x in
+[-0.11, 0.11] m, y in [0.27, 0.40] m, at least 11.5 cm from the shoulder pan axis and
+5 cm to either side of x = 0, where the arm's home pose hides them from the overview
+camera — each with a random yaw in [0°, 90°).
+
+Success: the red cube rests on the blue one — its centre within 1.5 cm horizontally of
+the blue cube's centre, its bottom within 5 mm of the blue cube's top and touching it —
+neither jaw touches either cube, and both are at rest (speeds below 0.05 m/s).
+
+Reward terms are stages — ``reach`` (jaws near the red cube), ``grasp`` (both pads on
+it), ``lift`` (its height towards 5 cm while held), ``place`` (carried over the blue
+cube, then set on it, then released) — and a later stage counts every earlier one as
+complete, so the reward never falls as the task progresses.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any, ClassVar
+
+import numpy as np
+
+from gym_soarm import constants
+from gym_soarm.sim.objects import Scene, SceneObject
+from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.tasks import placement
+from gym_soarm.tasks.base import (
+    RewardWeights,
+    Task,
+    TaskSpec,
+    norm,
+    position_field,
+    quaternion_field,
+    tolerance,
+)
+from gym_soarm.tasks.scripted import PlaceExpert
+
+CUBE_SIZE_M = 0.03
+CUBE_HALF_M = CUBE_SIZE_M / 2
+CUBE_MASS_KG = 0.02
+RED_CUBE = SceneObject(
+    name="red_cube",
+    shape="box",
+    size_m=(CUBE_HALF_M, CUBE_HALF_M, CUBE_HALF_M),
+    colour="red",
+    mass_kg=CUBE_MASS_KG,
+    position_m=(-0.05, 0.33),
+)
+"""The cube to stack: 3 cm, 20 g, red."""
+BLUE_CUBE = SceneObject(
+    name="blue_cube",
+    shape="box",
+    size_m=(CUBE_HALF_M, CUBE_HALF_M, CUBE_HALF_M),
+    colour="blue",
+    mass_kg=CUBE_MASS_KG,
+    position_m=(0.05, 0.33),
+)
+"""The cube to stack on: 3 cm, 20 g, blue."""
+
+START_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.11, 0.11), (0.27, 0.40))
+"""Where the cubes' centres start: ((x_min, x_max), (y_min, y_max)), well within reach."""
+START_GAP_M = 0.035
+"""Free space between the two cubes' footprints at the start: room for an open jaw."""
+PAN_AXIS_XY_M: tuple[float, float] = (0.0, 0.1888)
+"""Where the shoulder pan axis meets the table (the arm turns about it)."""
+MIN_PAN_DISTANCE_M = 0.115
+"""Closest a cube's centre starts to the pan axis: nearer, the arm cannot hold the jaws
+vertical as high as a cube carried over the other one, and the stack would tilt."""
+ARM_SHADOW_HALF_WIDTH_M = 0.05
+"""Objects start at least this far from the line x = 0: nearer, the arm's home pose hides
+them from the overview camera."""
+MAX_LAYOUT_DRAWS = 1000
+"""Whole layouts drawn before :func:`draw_beside_arm` gives up."""
+START_YAW_DEG: tuple[float, float] = (0.0, 90.0)
+"""Range of the cubes' start yaws (a cube looks the same every quarter turn)."""
+
+STACK_RADIUS_M = 0.015
+"""How far (horizontally) the red centre may lie from the blue centre on a stack."""
+STACK_HEIGHT_TOL_M = 0.005
+"""How far the red cube's bottom may lie from the blue cube's top on a stack."""
+RESTING_SPEED_M_S = 0.05
+REACH_MARGIN_M = 0.10
+LIFT_HEIGHT_M = 0.05
+"""The height (of its bottom) at which a held red cube counts as lifted."""
+PLACE_MARGIN_M = 0.20
+# Share of the place term earned by carrying the held red cube over the blue one, and by a
+# red cube that sits on the blue one but is still held or moving; the release earns the rest.
+PLACE_CARRY_CREDIT = 0.8
+PLACE_ON_BLUE_CREDIT = 0.9
+
+
+def draw_beside_arm(
+    rng: np.random.Generator,
+    radii_m: Sequence[float],
+    region_m: tuple[tuple[float, float], tuple[float, float]],
+    keep_clear: Sequence[tuple[float, float, float]] = (),
+    gap_m: float = 0.01,
+) -> list[tuple[float, float]]:
+    """Like :func:`~gym_soarm.tasks.placement.draw_uniform_positions`, but every centre
+    lies at least :data:`ARM_SHADOW_HALF_WIDTH_M` from x = 0 (in the overview camera's view).
+
+    Whole layouts are drawn until one qualifies, so the layout stays uniform over the
+    allowed ones.
+
+    Raises:
+        RuntimeError: no layout qualified in :data:`MAX_LAYOUT_DRAWS` draws.
+    """
+    for _ in range(MAX_LAYOUT_DRAWS):
+        spots = placement.draw_uniform_positions(rng, radii_m, region_m, keep_clear, gap_m)
+        if all(abs(x) >= ARM_SHADOW_HALF_WIDTH_M for x, _ in spots):
+            return spots
+    raise RuntimeError(
+        f"no layout of objects of radii {list(radii_m)} m in {region_m} kept "
+        f"{ARM_SHADOW_HALF_WIDTH_M} m from x = 0 after {MAX_LAYOUT_DRAWS} draws."
+    )
+
+
+class StackCubeTask(Task):
+    """Stack the red cube on the blue cube, released and at rest."""
+
+    weights = RewardWeights({"reach": 0.1, "grasp": 0.2, "lift": 0.3, "place": 0.4})
+    state_fields: ClassVar = (
+        position_field("red_cube_pos", "red_cube"),
+        quaternion_field("red_cube_quat_wxyz", "red_cube"),
+        position_field("blue_cube_pos", "blue_cube"),
+        quaternion_field("blue_cube_quat_wxyz", "blue_cube"),
+        position_field("gripper_pos", "gripper"),
+    )
+    top = RED_CUBE.name
+    bottom = BLUE_CUBE.name
+
+    def initialize_episode(
+        self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
+    ) -> None:
+        """Home the arm and drop both cubes at free spots with random yaws."""
+        physics.reset_to_home()
+        items = (RED_CUBE, BLUE_CUBE)
+        # A disc round the pan axis that keeps every centre MIN_PAN_DISTANCE_M from it (the
+        # draw keeps footprint + disc radius + gap between centre and axis).
+        footprint = max(item.footprint_radius_m for item in items)
+        near_arm = (*PAN_AXIS_XY_M, MIN_PAN_DISTANCE_M - footprint - START_GAP_M)
+        spots = draw_beside_arm(
+            rng,
+            [item.footprint_radius_m for item in items],
+            START_REGION_M,
+            keep_clear=(near_arm,),
+            gap_m=START_GAP_M,
+        )
+        for item, (x, y) in zip(items, spots, strict=True):
+            yaw = float(rng.uniform(*START_YAW_DEG))
+            physics.set_object_pose(
+                item.name,
+                np.array([x, y, constants.TABLE_TOP_Z_M + item.rest_height_m]),
+                placement.yaw_quaternion(yaw),
+            )
+
+    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
+        red_position, red_quaternion = physics.object_pose(self.top)
+        blue_position, blue_quaternion = physics.object_pose(self.bottom)
+        return np.concatenate(
+            [
+                red_position,
+                red_quaternion,
+                blue_position,
+                blue_quaternion,
+                physics.gripper_position(),
+            ]
+        )
+
+    # --- geometry of the stack ---------------------------------------------------------
+    def stack_target(self, physics: SoArmPhysics) -> np.ndarray:
+        """Where the red cube's centre rests when stacked: on top of the blue cube."""
+        target = physics.object_position(self.bottom)
+        target[2] += CUBE_SIZE_M
+        return target
+
+    def _offset(self, physics: SoArmPhysics) -> float:
+        """Horizontal distance (m) from the red cube's centre to the blue cube's centre."""
+        rx, ry, _ = physics.object_position(self.top).tolist()
+        bx, by, _ = physics.object_position(self.bottom).tolist()
+        return math.hypot(rx - bx, ry - by)
+
+    def _on_blue(self, physics: SoArmPhysics, offset: float) -> bool:
+        """The red cube sits on top of the blue cube (held or not)."""
+        if offset > STACK_RADIUS_M:
+            return False
+        blue_top = physics.object_position(self.bottom)[2] + CUBE_HALF_M
+        red_bottom = physics.object_height(self.top) + constants.TABLE_TOP_Z_M
+        return abs(red_bottom - blue_top) <= STACK_HEIGHT_TOL_M
+
+    def is_success(self, physics: SoArmPhysics) -> bool:
+        return (
+            self._on_blue(physics, self._offset(physics))
+            and physics.touching(self.top, self.bottom)
+            and not physics.touched_by_jaws(self.top)
+            and not physics.touched_by_jaws(self.bottom)
+            and physics.object_speed(self.top) < RESTING_SPEED_M_S
+            and physics.object_speed(self.bottom) < RESTING_SPEED_M_S
+        )
+
+    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
+        if self.is_success(physics) if success is None else success:
+            return dict.fromkeys(self.weights.terms, 1.0)
+        offset = self._offset(physics)
+        if self._on_blue(physics, offset):
+            # On the blue cube but still held or moving: only the release is missing.
+            return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACE_ON_BLUE_CREDIT}
+        if not physics.grasped(self.top):
+            distance = norm(physics.grasp_center() - physics.object_position(self.top))
+            reach = tolerance(distance, 0.01, REACH_MARGIN_M)
+            return {"reach": reach, "grasp": 0.0, "lift": 0.0, "place": 0.0}
+        # A held red cube over the blue one counts as lifted, so lowering it loses nothing.
+        if offset <= STACK_RADIUS_M:
+            lift = 1.0
+        else:
+            lift = min(max(physics.object_height(self.top) / LIFT_HEIGHT_M, 0.0), 1.0)
+        over_blue = tolerance(offset, STACK_RADIUS_M, PLACE_MARGIN_M)
+        return {
+            "reach": 1.0,
+            "grasp": 1.0,
+            "lift": lift,
+            "place": PLACE_CARRY_CREDIT * over_blue * lift,
+        }
+
+    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+        return {
+            "red_cube_pos": physics.object_position(self.top).tolist(),
+            "blue_cube_pos": physics.object_position(self.bottom).tolist(),
+            "target_pos": self.stack_target(physics).tolist(),
+        }
+
+
+class StackCubeExpert(PlaceExpert):
+    """Grasp the red cube, carry it over the blue one, turn it square to it, set it down."""
+
+    def grasp_object(self) -> str:
+        return RED_CUBE.name
+
+    def place_target(self) -> np.ndarray:
+        target = self.env.physics.object_position(BLUE_CUBE.name)
+        target[2] += CUBE_SIZE_M
+        return target
+
+    def _begin_lower(self) -> None:
+        if not self._holding():
+            return
+        # Turn the held cube (by at most 45°) so its faces line up with the blue cube's:
+        # the jaw tips, just above the red cube's bottom, then stay clear of blue corners.
+        physics = self.env.physics
+        turn = math.remainder(
+            physics.object_yaw(BLUE_CUBE.name) - physics.object_yaw(RED_CUBE.name),
+            math.pi / 2,
+        )
+        target = self.place_target()
+        target[2] += self.config.place_clearance_m
+        # The held cube's centre turns with the jaws about the site's vertical axis.
+        self._held_offset = physics.object_position(RED_CUBE.name) - physics.grasp_center()
+        cos, sin = math.cos(turn), math.sin(turn)
+        dx, dy, dz = self._held_offset.tolist()
+        offset = np.array([cos * dx - sin * dy, sin * dx + cos * dy, dz])
+        self._line_move(target - offset, self._yaw + turn)
+
+    def _begin_retreat(self) -> None:
+        super()._begin_retreat()
+        # Keep the jaws open while moving away (the base retreat leaves the gripper's
+        # interpolation from the release's closed start, which would close them again).
+        self._gripper(self.config.gripper_open_rad)
+
+
+SPEC = TaskSpec(
+    name="StackCube-v0",
+    task=StackCubeTask,
+    expert=StackCubeExpert,
+    max_episode_steps=400,
+    scene=Scene(objects=(RED_CUBE, BLUE_CUBE)),
+    instructions=("Stack the red cube on top of the blue cube.",),
+    summary="stack the red cube on the blue cube",
+    aliases=("stack",),
+)
