@@ -224,6 +224,8 @@ class ScriptedExpert:
         if self._phase_index < len(self._plan):
             phase = self._plan[self._phase_index]
             self._phase_length = phase.steps
+            # The gripper holds its last target unless the phase sets another.
+            self._gripper(self._gripper_to)
             phase.begin()
 
     def _holding(self) -> bool:
