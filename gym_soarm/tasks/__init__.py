@@ -20,6 +20,8 @@ BUILTIN_TASK_MODULES: tuple[str, ...] = (
     "push_cube",
     "stack_cube",
     "place_in_bin",
+    "pick_and_place_cylinder",
+    "open_drawer",
 )
 """The built-in task modules, in the order the registry (and the README) lists them."""
 

@@ -1,0 +1,448 @@
+"""``OpenDrawer-v0``: pull the drawer of the small cabinet open by at least 6 cm.
+
+The scene: a small open-topped white cabinet (15 cm wide, 9 cm deep, 7 cm tall, made of
+box walls) stands on the table with its front towards the robot. Its drawer (blue, a
+tray with a front panel) slides on one joint straight out of the cabinet, towards the
+robot, by up to 9 cm; a black bar handle, 1.2 cm thick, stands 4.5 cm proud of the
+drawer's front at 4 cm above the table. The drawer's joint has damping and dry friction,
+so it stays wherever it is left.
+
+Reset: the drawer is closed (its joint at 0) and the cabinet stands somewhere on an arc
+round the robot, facing the arm's shoulder pan axis: the handle's bearing is drawn
+uniformly within 15 degrees either side of straight ahead and its distance from the pan
+axis within [0.17, 0.185] m. Facing the arm keeps the pull straight along a radius of
+the arm's reach, and the table's far edge bounds how far the cabinet can stand. The
+cabinet is a fixed fixture, a static body of the compiled model: the reset writes its
+body position and yaw into this environment's own copy of the model
+(``physics.model.body_pos`` and ``body_quat``), so nothing is recompiled, and every
+reset writes them, so a seed always gives the same episode. The drawer is the cabinet's
+child body, so it moves with it.
+
+Success: the drawer is open by at least 6 cm (``physics.fixture_joint_position``).
+
+Reward terms are stages — ``reach`` (the jaws' centre near the handle), ``grasp`` (a jaw
+pad on the handle, hooking or pinching it) and ``open`` (the drawer's opening as a
+fraction of 6 cm) — and a later stage counts every earlier one as complete (a drawer
+open by 5 mm or more counts as reached and grasped), so the reward never falls as the
+task progresses.
+
+The expert hovers over the handle with the jaws open and their closing axis along the
+slide, lowers the moving jaw into the gap between the handle and the drawer's front,
+closes the jaws on the bar, pulls 7.5 cm straight along the slide axis, lets go and rises
+until the jaw tips clear the bar.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from gym_soarm import constants
+from gym_soarm.sim.kinematics import downward_rotation
+from gym_soarm.sim.objects import Fixture, FixtureGeom, FixtureJoint, Scene
+from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.tasks.base import (
+    RewardWeights,
+    Task,
+    TaskSpec,
+    norm,
+    position_field,
+    quaternion_field,
+    scalar_field,
+    tolerance,
+)
+from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase, ScriptedExpert
+
+# --- the cabinet (its frame: origin on the table under its centre, -y out of its front) ---
+CABINET_HALF_WIDTH_M = 0.075
+CABINET_HALF_DEPTH_M = 0.045
+CABINET_HEIGHT_M = 0.07
+WALL_HALF_M = 0.003
+CABINET = Fixture(
+    name="cabinet",
+    position_m=(0.0, 0.45, 0.0),
+    geoms=(
+        # floor
+        FixtureGeom(
+            "box",
+            (CABINET_HALF_WIDTH_M, CABINET_HALF_DEPTH_M, WALL_HALF_M),
+            "white",
+            (0.0, 0.0, WALL_HALF_M),
+        ),
+        # left and right walls
+        *(
+            FixtureGeom(
+                "box",
+                (WALL_HALF_M, CABINET_HALF_DEPTH_M, CABINET_HEIGHT_M / 2),
+                "white",
+                (side * (CABINET_HALF_WIDTH_M - WALL_HALF_M), 0.0, CABINET_HEIGHT_M / 2),
+            )
+            for side in (-1.0, 1.0)
+        ),
+        # back wall
+        FixtureGeom(
+            "box",
+            (CABINET_HALF_WIDTH_M, WALL_HALF_M, CABINET_HEIGHT_M / 2),
+            "white",
+            (0.0, CABINET_HALF_DEPTH_M - WALL_HALF_M, CABINET_HEIGHT_M / 2),
+        ),
+    ),
+    site_m=(0.0, -CABINET_HALF_DEPTH_M, CABINET_HEIGHT_M / 2),
+)
+"""An open-topped white box (floor, sides, back) whose open front faces -y: the drawer's
+housing. Its top is left open so that every camera sees the drawer inside."""
+
+# --- the drawer (its frame is the cabinet's while closed; it slides along -y) --------------
+DRAWER_TRAVEL_M = 0.09
+FRONT_FACE_Y_M = -(CABINET_HALF_DEPTH_M + 0.002)
+"""The drawer front's outer face, 2 mm proud of the cabinet's front edges."""
+HANDLE_STANDOFF_M = 0.045
+"""From the drawer front's outer face to the handle bar's centre."""
+HANDLE_HALF_M = (0.04, 0.006, 0.005)
+"""Half extents of the handle bar: 8 cm long, 1.2 cm thick (along the slide), 1 cm tall."""
+HANDLE_HEIGHT_M = 0.04
+HANDLE_Y_M = FRONT_FACE_Y_M - HANDLE_STANDOFF_M
+POST_X_M = 0.034
+CLEARANCE_M = 0.003
+"""Free space between the drawer and the cabinet's walls (they never touch while it slides)."""
+DRAWER_HALF_WIDTH_M = CABINET_HALF_WIDTH_M - 2 * WALL_HALF_M - CLEARANCE_M
+FRONT_HALF_M = (DRAWER_HALF_WIDTH_M, 0.004, 0.028)
+TRAY_FLOOR_Z_M = 0.012
+TRAY_HALF_DEPTH_M = 0.036
+TRAY_CENTRE_Y_M = FRONT_FACE_Y_M + 2 * FRONT_HALF_M[1] + TRAY_HALF_DEPTH_M
+TRAY_WALL_HALF_HEIGHT_M = 0.018
+POST_HALF_LENGTH_M = (HANDLE_STANDOFF_M - HANDLE_HALF_M[1]) / 2
+
+TRAY_GEOMS: tuple[FixtureGeom, ...] = (
+    # front panel
+    FixtureGeom(
+        "box",
+        FRONT_HALF_M,
+        "blue",
+        (0.0, FRONT_FACE_Y_M + FRONT_HALF_M[1], TRAY_FLOOR_Z_M + FRONT_HALF_M[2]),
+        mass_kg=0.04,
+    ),
+    # tray floor
+    FixtureGeom(
+        "box",
+        (DRAWER_HALF_WIDTH_M, TRAY_HALF_DEPTH_M, 0.002),
+        "blue",
+        (0.0, TRAY_CENTRE_Y_M, TRAY_FLOOR_Z_M + 0.002),
+        mass_kg=0.03,
+    ),
+    # tray sides
+    *(
+        FixtureGeom(
+            "box",
+            (0.002, TRAY_HALF_DEPTH_M, TRAY_WALL_HALF_HEIGHT_M),
+            "blue",
+            (
+                side * (DRAWER_HALF_WIDTH_M - 0.002),
+                TRAY_CENTRE_Y_M,
+                TRAY_FLOOR_Z_M + TRAY_WALL_HALF_HEIGHT_M,
+            ),
+            mass_kg=0.015,
+        )
+        for side in (-1.0, 1.0)
+    ),
+    # tray back
+    FixtureGeom(
+        "box",
+        (DRAWER_HALF_WIDTH_M, 0.002, TRAY_WALL_HALF_HEIGHT_M),
+        "blue",
+        (
+            0.0,
+            TRAY_CENTRE_Y_M + TRAY_HALF_DEPTH_M - 0.002,
+            TRAY_FLOOR_Z_M + TRAY_WALL_HALF_HEIGHT_M,
+        ),
+        mass_kg=0.015,
+    ),
+)
+"""The drawer's box: front panel, floor, sides and back, all within the cabinet's walls."""
+
+HANDLE_GEOMS: tuple[FixtureGeom, ...] = (
+    FixtureGeom("box", HANDLE_HALF_M, "black", (0.0, HANDLE_Y_M, HANDLE_HEIGHT_M), mass_kg=0.01),
+    *(
+        FixtureGeom(
+            "box",
+            (0.004, POST_HALF_LENGTH_M, HANDLE_HALF_M[2]),
+            "black",
+            (side * POST_X_M, FRONT_FACE_Y_M - POST_HALF_LENGTH_M, HANDLE_HEIGHT_M),
+            mass_kg=0.005,
+        )
+        for side in (-1.0, 1.0)
+    ),
+)
+"""The handle: a bar across the front and the two posts that hold it."""
+
+DRAWER_DAMPING_N_S_PER_M = 3.0
+DRAWER_FRICTION_N = 0.3
+"""The slide's damping and dry friction: a drawer of 0.14 kg that glides when pulled and
+stops, and stays, where it is let go."""
+
+DRAWER = Fixture(
+    name="drawer",
+    parent="cabinet",
+    position_m=(0.0, 0.0, 0.0),
+    joint=FixtureJoint(
+        kind="slide",
+        axis=(0.0, -1.0, 0.0),
+        range=(0.0, DRAWER_TRAVEL_M),
+        damping=DRAWER_DAMPING_N_S_PER_M,
+        frictionloss=DRAWER_FRICTION_N,
+    ),
+    geoms=TRAY_GEOMS + HANDLE_GEOMS,
+    site_m=(0.0, HANDLE_Y_M, HANDLE_HEIGHT_M),
+)
+"""The blue drawer: a front panel, an open tray and a black bar handle. Its site (the
+point ``fixture_position("drawer")`` reports) is the handle bar's centre."""
+
+HANDLE_GEOM_INDICES = tuple(range(len(TRAY_GEOMS), len(TRAY_GEOMS) + len(HANDLE_GEOMS)))
+"""The handle's places among the drawer's geoms (MuJoCo names them ``drawer_<index>``)."""
+
+# --- reset, success and reward figures ------------------------------------------------------
+HANDLE_BEARING_DEG = (75.0, 105.0)
+"""The handle's bearing from the shoulder pan axis (degrees about world z; 90 is straight
+ahead, +y): the cabinet stands anywhere in this arc, facing the axis."""
+HANDLE_RADIUS_M = (0.17, 0.185)
+"""The handle's distance from the shoulder pan axis (m) while the drawer is closed."""
+SHOULDER_OFFSET_M = 0.0388353
+"""The shoulder's offset from the robot base's centre along the base's x axis (so101.xml)."""
+PAN_AXIS_XY_M = (0.0, constants.ROBOT_BASE_POS_M[1] + SHOULDER_OFFSET_M)
+"""Where the shoulder pan axis meets the table: the base faces +y, so the offset is along y."""
+
+OPEN_SUCCESS_M = 0.06
+"""The drawer counts as open from this far out."""
+STAGE_CREDIT_OPEN_M = 0.005
+"""A drawer open this far counts as reached and grasped."""
+REACH_MARGIN_M = 0.10
+
+
+def drawer_placement(rng: np.random.Generator) -> tuple[np.ndarray, float]:
+    """Draw the cabinet's world position (m) and yaw (rad) for one reset.
+
+    The handle's bearing and distance from the shoulder pan axis are drawn uniformly
+    within :data:`HANDLE_BEARING_DEG` and :data:`HANDLE_RADIUS_M`; the cabinet's front
+    faces the axis, so the drawer slides straight towards it.
+    """
+    bearing = math.radians(float(rng.uniform(*HANDLE_BEARING_DEG)))
+    radius = float(rng.uniform(*HANDLE_RADIUS_M))
+    # The handle sits -HANDLE_Y_M in front of the cabinet's origin, along the radius.
+    origin_radius = radius - HANDLE_Y_M
+    x = PAN_AXIS_XY_M[0] + origin_radius * math.cos(bearing)
+    y = PAN_AXIS_XY_M[1] + origin_radius * math.sin(bearing)
+    # The cabinet's -y (its front) points back along the radius, at the pan axis.
+    return np.array([x, y, constants.TABLE_TOP_Z_M]), bearing - math.pi / 2
+
+
+def place_fixture(physics: SoArmPhysics, name: str, position: np.ndarray, yaw: float) -> None:
+    """Put static fixture ``name``'s body at ``position`` (world, m) turned ``yaw`` (rad).
+
+    Only inside a reset context: the body's pose is a model parameter (this environment's
+    own copy of the model) that the forward kinematics ending the reset reads. Fixtures
+    attached to it (``parent=name``) move with it.
+
+    Raises:
+        ValueError: the scene has no fixture ``name``.
+    """
+    if name not in physics.fixture_names:
+        raise ValueError(
+            f"this scene has no fixture {name!r}; its fixtures are {list(physics.fixture_names)}."
+        )
+    body = physics.model.ptr.body(name)
+    body.pos[:] = position
+    body.quat[:] = (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
+
+
+def jaws_on_geoms(physics: SoArmPhysics, geoms: frozenset[int]) -> tuple[bool, bool]:
+    """Whether the fixed and the moving jaw pad each touch one of ``geoms`` (geom ids)."""
+    data = physics.data.ptr
+    model = physics.model.ptr
+    fixed_pad, moving_pad = (
+        mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name) for name in constants.JAW_PAD_GEOMS
+    )
+    fixed = moving = False
+    for geom1, geom2 in data.contact.geom[: data.ncon].tolist():
+        if geom1 in geoms:
+            other = geom2
+        elif geom2 in geoms:
+            other = geom1
+        else:
+            continue
+        fixed = fixed or other == fixed_pad
+        moving = moving or other == moving_pad
+    return fixed, moving
+
+
+def handle_geoms(physics: SoArmPhysics) -> frozenset[int]:
+    """The geom ids of the drawer's handle (bar and posts)."""
+    model = physics.model.ptr
+    return frozenset(
+        mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{DRAWER.name}_{index}")
+        for index in HANDLE_GEOM_INDICES
+    )
+
+
+def slide_direction(physics: SoArmPhysics) -> np.ndarray:
+    """World direction (unit, horizontal) in which the drawer opens."""
+    return physics.data.ptr.joint(DRAWER.name).xaxis.copy()
+
+
+class OpenDrawerTask(Task):
+    """Pull the cabinet's drawer open by at least 6 cm."""
+
+    weights = RewardWeights({"reach": 0.2, "grasp": 0.3, "open": 0.5})
+    state_fields: ClassVar = (
+        position_field("handle_pos", "handle"),
+        scalar_field("drawer_opening", 1.0),
+        position_field("cabinet_pos", "cabinet"),
+        quaternion_field("cabinet_quat_wxyz", "cabinet"),
+        position_field("gripper_pos", "gripper"),
+    )
+
+    def __init__(self, spec: TaskSpec) -> None:
+        super().__init__(spec)
+        self._cabinet_yaw = 0.0
+        self._handle_geoms: frozenset[int] | None = None
+
+    def initialize_episode(
+        self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
+    ) -> None:
+        physics.reset_to_home()  # also closes the drawer: its joint's home is 0
+        position, yaw = drawer_placement(rng)
+        place_fixture(physics, CABINET.name, position, yaw)
+        self._cabinet_yaw = yaw
+        self._handle_geoms = handle_geoms(physics)
+
+    def _handle(self, physics: SoArmPhysics) -> frozenset[int]:
+        if self._handle_geoms is None:
+            self._handle_geoms = handle_geoms(physics)
+        return self._handle_geoms
+
+    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
+        cabinet = physics.model.ptr.body(CABINET.name)
+        return np.concatenate(
+            [
+                physics.fixture_position(DRAWER.name),
+                [physics.fixture_joint_position(DRAWER.name)],
+                cabinet.pos,
+                cabinet.quat,
+                physics.gripper_position(),
+            ]
+        )
+
+    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+        return {
+            "drawer_opening_m": physics.fixture_joint_position(DRAWER.name),
+            "handle_pos": physics.fixture_position(DRAWER.name),
+            "cabinet_pos": physics.model.ptr.body(CABINET.name).pos.copy(),
+            "cabinet_yaw_deg": math.degrees(self._cabinet_yaw),
+        }
+
+    def is_success(self, physics: SoArmPhysics) -> bool:
+        return physics.fixture_joint_position(DRAWER.name) >= OPEN_SUCCESS_M
+
+    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
+        if self.is_success(physics) if success is None else success:
+            return dict.fromkeys(self.weights.terms, 1.0)
+        opening = physics.fixture_joint_position(DRAWER.name)
+        opened = min(max(opening / OPEN_SUCCESS_M, 0.0), 1.0)
+        if opening >= STAGE_CREDIT_OPEN_M or any(jaws_on_geoms(physics, self._handle(physics))):
+            return {"reach": 1.0, "grasp": 1.0, "open": opened}
+        distance = norm(physics.grasp_center() - physics.fixture_position(DRAWER.name))
+        return {"reach": tolerance(distance, 0.01, REACH_MARGIN_M), "grasp": 0.0, "open": opened}
+
+
+class OpenDrawerExpert(ScriptedExpert):
+    """Hover over the handle, lower the jaws round the bar, close, pull 7.5 cm, let go, rise.
+
+    The jaws close along the slide axis with the moving jaw on the drawer's side of the
+    bar, so the pull presses the moving jaw's pad against the bar: a hook as well as a
+    pinch.
+    """
+
+    hover_height_m = 0.08
+    """Height of ``grasp_center`` above the handle's approach, jaw tips clear of the bar."""
+    pull_m = 0.075
+    """How far the jaws pull the handle along the slide (the drawer opens ~4 mm more as
+    they close on the bar)."""
+    retreat_height_m = 0.07
+    """Height of ``grasp_center`` after letting go: the jaw tips 1.5 cm above the bar."""
+    pull_steps = 60
+    open_rad = 0.3
+    """Gripper target while approaching: the moving pad 4 cm from the fixed one, so that
+    the moving jaw fits between the bar and the drawer's front."""
+    fixed_jaw_gap_m = 0.004
+    """Gap left between the fixed pad and the bar's near face while descending."""
+
+    def __init__(self, env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> None:
+        super().__init__(env, config)
+        self._slide = np.array([0.0, -1.0, 0.0])
+
+    def _after_grasp_phases(self) -> list[Phase]:
+        c = self.config
+        return [
+            Phase("pull", self.pull_steps, self._begin_pull),
+            Phase("release", c.release_steps, self._begin_release),
+            Phase("retreat", c.retreat_steps, self._begin_retreat),
+        ]
+
+    def _begin_approach(self) -> None:
+        physics = self.env.physics
+        self._slide = slide_direction(physics)
+        handle = physics.fixture_position(DRAWER.name)
+        # The jaws' x axis (fixed -> moving jaw) points into the cabinet, against the slide.
+        outward = -self._slide
+        self._yaw = math.atan2(outward[1], outward[0])
+        # The fixed pad's inner face sits 15 mm behind grasp_center along -x.
+        pad_offset = 0.015 - HANDLE_HALF_M[1] - self.fixed_jaw_gap_m
+        self._grasp_point = handle + pad_offset * outward
+        hover = self._grasp_point.copy()
+        hover[2] = self.hover_height_m
+        target, _, _ = self._kinematics.solve(
+            self._seed_towards(hover), hover, downward_rotation(self._yaw)
+        )
+        distance = float(np.abs(target - self._command[: self._n_arm]).max())
+        steps = math.ceil(distance / self.config.approach_speed_rad_per_step)
+        self._phase_length = min(max(steps, self.config.rise_steps), self.config.approach_steps)
+        self._joint_move(target)
+        self._gripper(self.open_rad)
+
+    def _begin_descend(self) -> None:
+        self._line_move(self._grasp_point, self._yaw)
+        self._gripper(self.open_rad)
+
+    def _begin_pull(self) -> None:
+        site, _ = self._kinematics.site_pose(self._command[: self._n_arm])
+        self._line_move(site + self.pull_m * self._slide, self._yaw)
+        self._gripper(self.config.gripper_closed_rad)
+
+    def _begin_release(self) -> None:
+        self._hold_arm()
+        self._gripper(self.open_rad)
+
+    def _begin_retreat(self) -> None:
+        # Straight up until the jaw tips clear the bar; the arm, folded near its base, holds
+        # the jaws vertical no higher.
+        site, _ = self._kinematics.site_pose(self._command[: self._n_arm])
+        site[2] = max(self.retreat_height_m, site[2])
+        self._line_move(site, self._yaw)
+        self._gripper(self.open_rad)
+
+
+SPEC = TaskSpec(
+    name="OpenDrawer-v0",
+    task=OpenDrawerTask,
+    expert=OpenDrawerExpert,
+    max_episode_steps=250,
+    scene=Scene(fixtures=(CABINET, DRAWER)),
+    instructions=("Pull the blue drawer open by its black handle.",),
+    summary="pull the cabinet's drawer open by at least 6 cm",
+    default_placement="uniform",
+    aliases=("open_drawer",),
+)

@@ -1,0 +1,297 @@
+"""``PickAndPlaceCylinder-v0``: stand the orange cylinder upright on the purple pad.
+
+The scene: an upright orange cylinder (1.45 cm radius, 5.5 cm tall, 20 g) and a purple
+pad of 4 cm radius painted on the table at (-0.18, 0.28) m (visual only: the cylinder
+stands on the table beneath it). At every reset the cylinder's centre is drawn uniformly
+in the reachable region x in [-0.12, 0.12] m, y in [0.275, 0.425] m, clear of the pad,
+of the strip |x| < 0.05 m beneath the arm's resting pose (where the overview camera could
+not see it) and at least 16 cm from the robot base's centre (nearer, the wrist cannot
+hold the jaws vertical above the tall cylinder's top); its yaw is irrelevant.
+
+Success: the cylinder stands upright (its axis within 10 degrees of vertical) on the
+pad (its centre within the pad's radius, its bottom within 5 mm of the table), neither
+jaw touches it and it is at rest.
+
+Reward terms are stages — ``reach`` (jaws near the cylinder), ``grasp`` (both pads on
+it), ``lift`` (its bottom raised towards 5 cm while held), ``place`` (carried over the
+pad, then standing on it, then released) — and a later stage counts every earlier one
+as complete, so the reward never falls as the task progresses.
+
+The expert grasps the cylinder around its middle, from whichever side the wrist
+reaches with least roll, carries it round the shoulder pan axis, lowers it onto the
+pad, lets go and rises.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+
+from gym_soarm import constants
+from gym_soarm.sim.kinematics import downward_rotation
+from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
+from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.tasks import placement
+from gym_soarm.tasks.base import (
+    RewardWeights,
+    Task,
+    TaskSpec,
+    norm,
+    position_field,
+    quaternion_field,
+    tolerance,
+)
+from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, PlaceExpert
+
+CYLINDER_RADIUS_M = 0.0145
+CYLINDER_HALF_HEIGHT_M = 0.0275
+CYLINDER = SceneObject(
+    name="cylinder",
+    shape="cylinder",
+    size_m=(CYLINDER_RADIUS_M, CYLINDER_HALF_HEIGHT_M),
+    colour="orange",
+    mass_kg=0.02,
+    position_m=placement.GRID_CENTER_M,
+)
+"""The 2.9 cm wide, 5.5 cm tall, 20 g orange cylinder, standing on its base."""
+
+START_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.12, 0.12), (0.275, 0.425))
+"""Where the cylinder's centre (x, y) is drawn: where the arm reaches with its jaws down."""
+ARM_SHADOW_HALF_WIDTH_M = 0.035
+"""Half width of the strip of table (about x = 0) that the resting arm hides from the
+overview camera: the cylinder's footprint starts clear of it."""
+MIN_BASE_DISTANCE_M = 0.16
+"""The cylinder starts at least this far from the robot base's centre: nearer, the wrist
+cannot point the jaws straight down at the height that clears the cylinder's top."""
+MAX_START_DRAWS = 1000
+
+PAD_RADIUS_M = 0.04
+PAD_POSITION_M = (-0.18, 0.28, 0.0)
+PAD = Fixture(
+    name="pad",
+    position_m=PAD_POSITION_M,
+    geoms=(
+        FixtureGeom(
+            "cylinder",
+            (PAD_RADIUS_M, 0.0005),
+            "purple",
+            (0.0, 0.0, 0.0005),
+            collides=False,
+            emission=0.2,
+        ),
+    ),
+    site_m=(0.0, 0.0, 0.001),
+)
+"""A thin purple disc on the table (visual only: the cylinder stands on the table beneath it)."""
+
+MAX_TILT_DEG = 10.0
+"""The cylinder counts as upright while its axis is within this angle of vertical."""
+PLACE_HEIGHT_TOL_M = 0.005
+RESTING_SPEED_M_S = 0.05
+REACH_MARGIN_M = 0.10
+PLACE_MARGIN_M = 0.20
+LIFT_HEIGHT_M = 0.05
+"""A held cylinder whose bottom is this high counts as fully lifted."""
+LIFT_DEAD_BAND_M = 0.002
+"""Lift counts from this height: closing jaws rock a standing cylinder by a fraction of it."""
+# Share of the place term earned by carrying the held cylinder over the pad, and by a
+# cylinder that stands on the pad but is still held or moving; the release earns the rest.
+PLACE_CARRY_CREDIT = 0.8
+PLACE_ON_PAD_CREDIT = 0.9
+
+_COS_MAX_TILT = math.cos(math.radians(MAX_TILT_DEG))
+
+
+def tilt_cosine(quaternion: np.ndarray) -> float:
+    """Cosine of the angle between a body's z axis and the world's, from its (w, x, y, z)."""
+    _, x, y, _ = quaternion.tolist()
+    return 1.0 - 2.0 * (x * x + y * y)
+
+
+def draw_start(rng: np.random.Generator) -> tuple[float, float]:
+    """The cylinder's start (x, y): uniform in :data:`START_REGION_M`, clear of the pad, of
+    the strip the resting arm hides from the overview camera and of the base's surroundings.
+
+    Raises:
+        RuntimeError: no draw of :data:`MAX_START_DRAWS` was clear (a broken region).
+    """
+    px, py, _ = PAD_POSITION_M
+    bx, by, _ = constants.ROBOT_BASE_POS_M
+    radius = CYLINDER.footprint_radius_m
+    for _ in range(MAX_START_DRAWS):
+        ((x, y),) = placement.draw_uniform_positions(
+            rng, [radius], START_REGION_M, keep_clear=[(px, py, PAD_RADIUS_M)]
+        )
+        clear_of_arm = abs(x) >= ARM_SHADOW_HALF_WIDTH_M + radius
+        if clear_of_arm and math.hypot(x - bx, y - by) >= MIN_BASE_DISTANCE_M:
+            return x, y
+    raise RuntimeError(
+        f"no start for the cylinder in {START_REGION_M} clear of |x| < "
+        f"{ARM_SHADOW_HALF_WIDTH_M + radius} m and {MIN_BASE_DISTANCE_M} m from the base "
+        f"after {MAX_START_DRAWS} draws."
+    )
+
+
+class PickAndPlaceCylinderTask(Task):
+    """Pick the cylinder up and stand it, released and at rest, upright on the purple pad."""
+
+    weights = RewardWeights({"reach": 0.1, "grasp": 0.2, "lift": 0.3, "place": 0.4})
+    state_fields: ClassVar = (
+        position_field("cylinder_pos", "cylinder"),
+        quaternion_field("cylinder_quat_wxyz", "cylinder"),
+        position_field("gripper_pos", "gripper"),
+        position_field("pad_pos", "pad"),
+    )
+    cylinder = CYLINDER.name
+
+    def __init__(self, spec: TaskSpec) -> None:
+        super().__init__(spec)
+        self.start_xy: tuple[float, float] = CYLINDER.position_m
+
+    def initialize_episode(
+        self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
+    ) -> None:
+        physics.reset_to_home()
+        x, y = draw_start(rng)
+        physics.set_object_pose(
+            self.cylinder,
+            np.array([x, y, constants.TABLE_TOP_Z_M + CYLINDER_HALF_HEIGHT_M]),
+            placement.yaw_quaternion(0.0),
+        )
+        self.start_xy = (x, y)
+
+    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
+        position, quaternion = physics.object_pose(self.cylinder)
+        return np.concatenate(
+            [position, quaternion, physics.gripper_position(), physics.fixture_position("pad")]
+        )
+
+    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+        return {
+            "cylinder_start_xy": [float(v) for v in self.start_xy],
+            "cylinder_pos": physics.object_position(self.cylinder),
+            "cylinder_tilt_deg": self._tilt_deg(physics),
+            "target_pos": physics.fixture_position("pad"),
+        }
+
+    # --- pieces -------------------------------------------------------------------------
+    def _tilt_deg(self, physics: SoArmPhysics) -> float:
+        cosine = tilt_cosine(physics.object_quaternion(self.cylinder))
+        return math.degrees(math.acos(min(max(cosine, -1.0), 1.0)))
+
+    def _pad_distance(self, physics: SoArmPhysics) -> float:
+        """Horizontal distance (m) from the cylinder's centre to the pad's centre."""
+        cx, cy, _ = physics.object_position(self.cylinder).tolist()
+        px, py, _ = physics.fixture_position("pad").tolist()
+        return math.hypot(cx - px, cy - py)
+
+    def _standing_on_pad(self, physics: SoArmPhysics, pad_distance: float) -> bool:
+        """Upright, centred within the pad's radius and with its bottom on the table."""
+        if pad_distance > PAD_RADIUS_M:
+            return False
+        position, quaternion = physics.object_pose(self.cylinder)
+        if tilt_cosine(quaternion) < _COS_MAX_TILT:
+            return False
+        bottom = position[2] - CYLINDER_HALF_HEIGHT_M - constants.TABLE_TOP_Z_M
+        return abs(bottom) <= PLACE_HEIGHT_TOL_M
+
+    def is_success(self, physics: SoArmPhysics) -> bool:
+        return (
+            self._standing_on_pad(physics, self._pad_distance(physics))
+            and not physics.touched_by_jaws(self.cylinder)
+            and physics.object_speed(self.cylinder) < RESTING_SPEED_M_S
+        )
+
+    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
+        if self.is_success(physics) if success is None else success:
+            return dict.fromkeys(self.weights.terms, 1.0)
+        pad_distance = self._pad_distance(physics)
+        if self._standing_on_pad(physics, pad_distance):
+            # Standing on the pad but still held or moving: only the release is missing.
+            return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACE_ON_PAD_CREDIT}
+        if not physics.grasped(self.cylinder):
+            distance = norm(physics.grasp_center() - physics.object_position(self.cylinder))
+            reach = tolerance(distance, 0.01, REACH_MARGIN_M)
+            return {"reach": reach, "grasp": 0.0, "lift": 0.0, "place": 0.0}
+        # A held cylinder above the pad counts as lifted, so lowering it loses nothing.
+        if pad_distance <= PAD_RADIUS_M:
+            lift = 1.0
+        else:
+            raised = physics.object_height(self.cylinder) - LIFT_DEAD_BAND_M
+            lift = min(max(raised / (LIFT_HEIGHT_M - LIFT_DEAD_BAND_M), 0.0), 1.0)
+        near_pad = tolerance(pad_distance, PAD_RADIUS_M / 2, PLACE_MARGIN_M)
+        return {
+            "reach": 1.0,
+            "grasp": 1.0,
+            "lift": lift,
+            "place": PLACE_CARRY_CREDIT * near_pad * lift,
+        }
+
+
+CYLINDER_EXPERT_CONFIG = dataclasses.replace(
+    DEFAULT_CONFIG,
+    hover_height_m=0.09,
+    grasp_height_m=0.03,
+    carry_height_m=0.09,
+    retreat_height_m=0.11,
+)
+"""The expert's figures for the 5.5 cm tall cylinder: it hovers with the jaw tips above
+its top, closes around its middle and carries it with its bottom 6 cm above the table."""
+
+_GRASP_YAW_CANDIDATES = 16
+"""Jaw directions tried (evenly round a full turn) when choosing how to grasp the cylinder."""
+
+
+class PickAndPlaceCylinderExpert(PlaceExpert):
+    """Grasp the cylinder around its middle, carry it over the pad, stand it there, let go.
+
+    With the default :class:`ExpertConfig` it uses :data:`CYLINDER_EXPERT_CONFIG`
+    (higher hover, grasp and carry heights); any other config is used as given.
+    """
+
+    def __init__(self, env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> None:
+        super().__init__(env, CYLINDER_EXPERT_CONFIG if config is DEFAULT_CONFIG else config)
+
+    def grasp_object(self) -> str:
+        return CYLINDER.name
+
+    def place_target(self) -> np.ndarray:
+        pad = self.env.physics.fixture_position("pad")
+        return np.array([pad[0], pad[1], constants.TABLE_TOP_Z_M + CYLINDER_HALF_HEIGHT_M])
+
+    def _begin_retreat(self) -> None:
+        super()._begin_retreat()
+        # Keep the jaws open while rising (the release phase opened them).
+        self._gripper(self.config.gripper_open_rad)
+
+    def _choose_grasp_yaw(self, position: np.ndarray) -> float:
+        """A round object can be grasped from any side: the one needing least wrist roll."""
+        seed = self._seed_towards(position)
+        best_yaw, best_cost = 0.0, math.inf
+        for index in range(_GRASP_YAW_CANDIDATES):
+            yaw = math.tau * index / _GRASP_YAW_CANDIDATES
+            q, position_error, rotation_error = self._kinematics.solve(
+                seed, position, downward_rotation(yaw)
+            )
+            cost = abs(q[self._roll]) + 100.0 * (position_error + rotation_error)
+            if cost < best_cost:
+                best_yaw, best_cost = yaw, cost
+        return best_yaw
+
+
+SPEC = TaskSpec(
+    name="PickAndPlaceCylinder-v0",
+    task=PickAndPlaceCylinderTask,
+    expert=PickAndPlaceCylinderExpert,
+    max_episode_steps=400,
+    scene=Scene(objects=(CYLINDER,), fixtures=(PAD,)),
+    instructions=("Pick up the orange cylinder and stand it upright on the purple pad.",),
+    summary="pick the cylinder up and stand it upright on the purple pad",
+    default_placement="uniform",
+    aliases=("pick_and_place_cylinder",),
+)
