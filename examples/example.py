@@ -42,33 +42,6 @@ TAIL_STEPS = 25  # keep recording 0.5 s after success: the release and retreat
 Policy = Callable[[Any, dict[str, Any]], np.ndarray]
 
 
-class SmoothMotion:
-    """A slow, smooth sweep of every joint around the home pose.
-
-    Stands in for the scripted expert where ``gym_soarm.make_expert`` is unavailable.
-    """
-
-    PERIOD_S = 8.0
-    PHASES_RAD = np.array([0.0, 0.7, 1.4, 2.1, 2.8, 0.3])
-
-    def __init__(self, env: gym.Env) -> None:
-        self.low = env.action_space.low.astype(np.float64)
-        self.high = env.action_space.high.astype(np.float64)
-        self.step = 0
-
-    def reset(self) -> None:
-        self.step = 0
-
-    def __call__(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
-        t = self.step * constants.CONTROL_TIMESTEP_S
-        self.step += 1
-        amplitude = 0.35 * np.minimum(np.abs(self.low), np.abs(self.high))
-        # Starts at the home pose and ramps in over the first second.
-        ramp = min(1.0, t)
-        wave = np.sin(2.0 * np.pi * t / self.PERIOD_S + self.PHASES_RAD) - np.sin(self.PHASES_RAD)
-        return np.clip(ramp * amplitude * wave, self.low, self.high).astype(np.float32)
-
-
 class RandomPolicy:
     """Uniform random joint targets from the action space, seeded."""
 
@@ -87,11 +60,7 @@ def make_policy(name: str, env: gym.Env, seed: int) -> tuple[Any, str]:
     """The policy called ``name`` for ``env`` and a description of what it is."""
     if name == "random":
         return RandomPolicy(env, seed), "random actions"
-    try:
-        from gym_soarm import make_expert
-    except ImportError:
-        return SmoothMotion(env), "a smooth scripted motion (this gym_soarm has no expert)"
-    return make_expert(env), "the scripted expert"
+    return gym_soarm.make_expert(env), "the scripted expert"
 
 
 def resolve_viewer(choice: str) -> bool:

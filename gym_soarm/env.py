@@ -23,6 +23,7 @@ from gym_soarm.tasks import get_task
 from gym_soarm.tasks.base import Task, TaskSpec
 from gym_soarm.units import UNITS, JointUnits, check_wrist_roll_offset, joint_units
 from gym_soarm.validation import (
+    ArgumentTypeError,
     check_choice,
     check_image_size,
     choices,
@@ -64,9 +65,10 @@ class SoArmEnv(gym.Env):
 
     * ``"pixels"``: ``{camera: uint8 (H, W, 3)}`` for the configured cameras.
     * ``"pixels_agent_pos"`` (default): ``{"pixels": {...}, "agent_pos": float64 (6,)}``.
-    * ``"environment_state_agent_pos"``: ``{"agent_pos": (6,), "environment_state": (13,)}``
-      where ``environment_state`` is cube position (3, m), cube quaternion (w, x, y, z),
-      ``gripperframe`` site position (3, m) and goal position (3, m). Renders nothing.
+    * ``"environment_state_agent_pos"``: ``{"agent_pos": (6,), "environment_state": (N,)}``
+      where ``environment_state`` follows the task's :attr:`state_layout` (pick-and-place:
+      cube position (3, m), cube quaternion (w, x, y, z), ``gripperframe`` site position
+      (3, m) and goal position (3, m)). Renders nothing.
 
     ``agent_pos`` holds the six joint positions in the units of the action: radians by
     default; with ``units="lerobot"`` the body joints in degrees and the gripper in 0 to
@@ -296,7 +298,7 @@ class SoArmEnv(gym.Env):
         if options is None:
             return {}
         if not isinstance(options, Mapping):
-            raise ValueError(
+            raise ArgumentTypeError(
                 f"options must be a dict with keys from {choices(keys) or 'none'}; got "
                 f"{options!r}. Pass e.g. {example}."
             )

@@ -34,8 +34,13 @@ def check_choice(name: str, value: Any, valid: Sequence[Any], none_ok: bool = Fa
     """``value`` if it is one of ``valid`` (or None with ``none_ok``), else ``ValueError``."""
     if none_ok and value is None:
         return value
-    if not isinstance(value, str) or value not in valid:
-        options = choices(valid) + (" or None" if none_ok else "")
+    options = choices(valid) + (" or None" if none_ok else "")
+    if not isinstance(value, str):
+        raise ArgumentTypeError(
+            f"{name} must be one of {options}; got {value!r} ({type(value).__name__}). "
+            f"Pass e.g. {name}={valid[0]!r}."
+        )
+    if value not in valid:
         raise ValueError(
             f"{name} must be one of {options}; got {value!r}. Pass e.g. {name}={valid[0]!r}."
         )
@@ -69,7 +74,7 @@ def check_number(name: str, value: Any, minimum: float | None = None, unit: str 
 def check_image_size(name: str, value: Any) -> int:
     """An image height or width in pixels, from 16 to 2048."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise ValueError(
+        raise ArgumentTypeError(
             f"{name} must be an int from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels; got {value!r}."
         )
     if not MIN_IMAGE_SIZE <= int(value) <= MAX_IMAGE_SIZE:
@@ -88,7 +93,12 @@ def resolve_camera_config(camera_config: str | Sequence[str]) -> tuple[str, ...]
                 f"of camera names from {choices(constants.CAMERA_NAMES)}; got {camera_config!r}."
             )
         return constants.CAMERA_CONFIGS[camera_config]
-    if not isinstance(camera_config, Sequence) or not camera_config:
+    if not isinstance(camera_config, Sequence):
+        raise ArgumentTypeError(
+            f"camera_config must be one of {choices(constants.CAMERA_CONFIGS)} or a sequence of "
+            f"camera names; got {camera_config!r} ({type(camera_config).__name__})."
+        )
+    if not camera_config:
         raise ValueError(
             f"camera_config must be one of {choices(constants.CAMERA_CONFIGS)} or a non-empty "
             f"sequence of camera names from {choices(constants.CAMERA_NAMES)}; got {camera_config!r}."

@@ -116,14 +116,23 @@ def test_reward_terms_bounded_summed_and_never_falling_along_the_expert(task):
 
 
 @pytest.mark.parametrize("task", TASKS)
-def test_sparse_reward_is_success(task):
+def test_sparse_reward_is_the_success_flag_along_the_expert(task):
     env = _state_env(task, reward_type="sparse")
     try:
-        env.reset(seed=0)
-        _, reward, _, _, info = env.step(env.unwrapped.physics.joint_angles().astype(np.float32))
-        assert reward == float(info["is_success"]) == 0.0
+        expert = make_expert(env)
+        seed, options = evaluation_resets(task)[0]
+        obs, info = env.reset(seed=seed, options=options)
+        expert.reset()
+        rewards, flags = [], []
+        while True:
+            obs, reward, terminated, truncated, info = env.step(expert(obs, info))
+            rewards.append(reward)
+            flags.append(float(info["is_success"]))
+            if terminated or truncated:
+                break
     finally:
         env.close()
+    assert rewards == flags and rewards[-1] == 1.0 and sum(rewards) == 1.0
 
 
 @pytest.mark.parametrize("task", TASKS)
@@ -134,6 +143,7 @@ def test_scene_rests_still_at_reset(task):
         for seed in range(3):
             env.reset(seed=seed)
             start = {name: physics.object_position(name) for name in physics.object_names}
+            fixtures = {name: physics.fixture_position(name) for name in physics.fixture_names}
             hold = physics.joint_angles().astype(np.float32)
             for _ in range(50):
                 _, _, terminated, _, info = env.step(hold)
@@ -142,6 +152,9 @@ def test_scene_rests_still_at_reset(task):
                 moved = np.abs(physics.object_position(name) - position).max()
                 assert moved < 1e-3, f"{task}: {name} drifted {moved * 1000:.2f} mm at rest"
                 assert physics.object_height(name) > -1e-3, f"{name} sinks into the table"
+            for name, position in fixtures.items():
+                moved = np.abs(physics.fixture_position(name) - position).max()
+                assert moved < 1e-3, f"{task}: fixture {name} moved {moved * 1000:.2f} mm at rest"
             assert not info["is_success"]
     finally:
         env.close()
@@ -157,6 +170,10 @@ def test_same_seed_same_episode(task):
             obs, info = env.reset(seed=7)
             expert.reset()
             trace = [obs["environment_state"].copy(), info["task"]]
+            other, _ = env.reset(seed=8)
+            assert not np.array_equal(other["environment_state"], trace[0]), "seed is ignored"
+            obs, info = env.reset(seed=7)
+            expert.reset()
             for _ in range(60):
                 obs, reward, *_, info = env.step(expert(obs, info))
                 trace.append((obs["environment_state"].copy(), obs["agent_pos"].copy(), reward))
@@ -164,7 +181,7 @@ def test_same_seed_same_episode(task):
         finally:
             env.close()
     first, second = traces
-    assert first[1] == second[1]
+    assert np.array_equal(first[0], second[0]) and first[1] == second[1]
     for a, b in zip(first[2:], second[2:], strict=True):
         assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1]) and a[2] == b[2]
 
@@ -177,7 +194,7 @@ def test_instruction_and_layout(task):
         base = env.unwrapped
         assert info["task"] == base.task_description and base.task_description.endswith(".")
         sizes = [size for _, size in base.state_layout]
-        assert sum(sizes) == obs["environment_state"].shape[0] == len(base.state_names)
+        assert sum(sizes) == obs["environment_state"].shape[0]
         assert env.observation_space.contains(obs)
     finally:
         env.close()

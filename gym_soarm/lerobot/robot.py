@@ -60,7 +60,7 @@ class SimSoArmFollowerConfig(RobotConfig):
             is at 0 rad (see :mod:`gym_soarm.units`).
         steps_per_action: 20 ms simulation steps per action; 0 follows the wall clock
             (the time since the previous action, 1 to 10 steps).
-        seed: seed of the scene's first reset (cube cell and yaw); None draws one.
+        seed: seed of the scene's first reset (where the task's objects start); None draws one.
         render_quality: ``"fast"`` or ``"high"``.
     """
 
@@ -169,7 +169,7 @@ class SimSoArmFollower(Robot):
         """Nothing to configure in simulation."""
 
     def reset(self, seed: int | None = None, options: dict[str, Any] | None = None) -> None:
-        """Start a new scene: the arm at home, the cube on a grid cell (see ``SoArmEnv``)."""
+        """Start a new scene: the arm at home, the task's objects where its reset puts them."""
         self._start_scene(self._connected_env(), seed, options)
 
     def _start_scene(

@@ -82,6 +82,20 @@ class SoArmPhysics(dm_mujoco.Physics):
         physics._index_layout()
         return physics
 
+    def copy(self, share_model: bool = False) -> SoArmPhysics:
+        """A copy of this physics (see dm_control), with the same objects and fixtures."""
+        new = super().copy(share_model)
+        new.layout = self.layout
+        new._index_layout()
+        return new
+
+    def __getstate__(self):
+        return self.data, self.layout
+
+    def __setstate__(self, state) -> None:
+        data, self.layout = state
+        super().__setstate__(data)
+
     def _reload_from_data(self, data):
         super()._reload_from_data(data)
         self._cache_ids()

@@ -68,7 +68,7 @@ def robot_xml() -> str:
 
 
 def _add_material(spec: mujoco.MjSpec, colour: str, emission: float, cache: dict) -> str:
-    name = f"{colour}_glow" if emission else colour
+    name = f"{colour}_glow{emission:g}" if emission else colour
     if name not in cache:
         spec.add_material(
             name=name, rgba=list(objects.COLOURS[colour]), specular=0.3, emission=emission
@@ -86,9 +86,12 @@ def _geom_type(shape: str) -> mujoco.mjtGeom:
 
 
 def _add_fixture(
-    spec: mujoco.MjSpec, fixture: objects.Fixture, parents: dict, materials: dict
+    spec: mujoco.MjSpec, fixture: objects.Fixture, parents: dict, materials: dict, moving: set
 ) -> None:
     parent = spec.worldbody if fixture.parent is None else parents[fixture.parent]
+    # A fixture moves if it has a joint or hangs from one that moves: its parts need mass.
+    if fixture.joint is not None or fixture.parent in moving:
+        moving.add(fixture.name)
     body = parent.add_body(name=fixture.name, pos=list(fixture.position_m))
     parents[fixture.name] = body
     joint = fixture.joint
@@ -115,7 +118,7 @@ def _add_fixture(
             contype=collides,
             conaffinity=collides,
             condim=3,
-            mass=part.mass_kg if joint is not None else 0.0,
+            mass=part.mass_kg if fixture.name in moving else 0.0,
         )
     body.add_site(name=fixture.name, pos=list(fixture.site_m), size=[0.005, 0, 0], group=3)
 
@@ -162,8 +165,9 @@ def _arena_spec(mesh_files: dict[str, bytes]) -> mujoco.MjSpec:
 def _add_layout(spec: mujoco.MjSpec, scene: objects.Scene) -> mujoco.MjSpec:
     materials: dict[str, str] = {}
     parents: dict[str, mujoco.MjsBody] = {}
+    moving: set[str] = set()
     for fixture in scene.fixtures:
-        _add_fixture(spec, fixture, parents, materials)
+        _add_fixture(spec, fixture, parents, materials, moving)
     for item in scene.objects:
         _add_object(spec, item, materials)
     spec.add_key(name=constants.HOME_KEYFRAME, ctrl=[0.0] * len(constants.JOINT_NAMES))

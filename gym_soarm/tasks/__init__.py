@@ -11,7 +11,14 @@ from __future__ import annotations
 import importlib
 
 from gym_soarm.tasks.base import StateField, Task, TaskSpec
-from gym_soarm.tasks.registry import ENV_IDS, get_task, register_task, task_names, task_spellings
+from gym_soarm.tasks.registry import (
+    ENV_IDS,
+    get_task,
+    register_task,
+    task_names,
+    task_spellings,
+    unregister_task,
+)
 
 BUILTIN_TASK_MODULES: tuple[str, ...] = (
     "pick_and_place_cube",
@@ -25,10 +32,14 @@ BUILTIN_TASK_MODULES: tuple[str, ...] = (
 )
 """The built-in task modules, in the order the registry (and the README) lists them."""
 
-for _module in BUILTIN_TASK_MODULES:
-    register_task(importlib.import_module(f"gym_soarm.tasks.{_module}").SPEC)
+BUILTIN_TASKS: tuple[str, ...] = tuple(
+    register_task(importlib.import_module(f"gym_soarm.tasks.{module}").SPEC).name
+    for module in BUILTIN_TASK_MODULES
+)
+"""The names of the built-in tasks, in registry order."""
 
 __all__ = [
+    "BUILTIN_TASKS",
     "BUILTIN_TASK_MODULES",
     "ENV_IDS",
     "StateField",
@@ -38,4 +49,5 @@ __all__ = [
     "register_task",
     "task_names",
     "task_spellings",
+    "unregister_task",
 ]

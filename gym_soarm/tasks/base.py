@@ -172,10 +172,6 @@ class Task:
         """
         raise NotImplementedError
 
-    def reward(self, physics: SoArmPhysics) -> float:
-        """The dense reward: the weighted sum of :meth:`reward_terms`, in [0, 1]."""
-        return self.weights.total(self.reward_terms(physics))
-
     def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
         """The task's own ``info`` keys (the environment adds the common ones)."""
         return {}

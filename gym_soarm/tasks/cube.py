@@ -8,7 +8,9 @@ grid cells with one of four yaws (reset options ``cube_grid_position`` and
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+import math
+import numbers
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -18,6 +20,7 @@ from gym_soarm.sim.objects import SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import Task, norm, position_field, quaternion_field, tolerance
+from gym_soarm.validation import ArgumentTypeError
 
 CUBE_SIZE_M = 0.03
 CUBE_HALF_M = CUBE_SIZE_M / 2
@@ -31,9 +34,52 @@ CUBE = SceneObject(
 )
 """The 3 cm, 20 g blue cube."""
 
+GRID_OPTION_KEYS: tuple[str, ...] = ("cube_grid_position", "cube_rotation_deg")
+"""Reset options of the grid tasks: the start cell and the yaw of the cube."""
+
 REACH_MARGIN_M = 0.10
 LIFT_HEIGHT_M = 0.05
 """The lift task's line, and the height a carried cube counts as lifted at."""
+
+
+def validate_grid_options(options: Mapping[str, Any]) -> dict[str, Any]:
+    """Check ``cube_grid_position`` (int 0-8 or None) and ``cube_rotation_deg`` (finite or None)."""
+    cell = options.get("cube_grid_position")
+    if cell is not None:
+        if isinstance(cell, (bool, np.bool_)) or not isinstance(cell, numbers.Integral):
+            raise ArgumentTypeError(
+                "cube_grid_position must be an int from 0 to 8 or None (random cell); "
+                f"got {cell!r} of type {type(cell).__name__}."
+            )
+        if not 0 <= int(cell) < placement.NUM_GRID_CELLS:
+            raise ValueError(
+                f"cube_grid_position must be from 0 to {placement.NUM_GRID_CELLS - 1} or None; got {cell!r}."
+            )
+        cell = int(cell)
+    yaw = options.get("cube_rotation_deg")
+    if yaw is not None:
+        if isinstance(yaw, (bool, np.bool_)) or not isinstance(yaw, numbers.Real):
+            raise ArgumentTypeError(
+                "cube_rotation_deg must be a finite number of degrees or None (random pick from "
+                f"{placement.GRID_YAWS_DEG}); got {yaw!r} of type {type(yaw).__name__}. Pass e.g. 45.0."
+            )
+        if not math.isfinite(float(yaw)):
+            raise ValueError(
+                f"cube_rotation_deg must be a finite number of degrees; got {yaw!r}. Pass "
+                "e.g. 45.0, or None for a random pick."
+            )
+        yaw = float(yaw)
+    return {"cube_grid_position": cell, "cube_rotation_deg": yaw}
+
+
+def grid_evaluation_resets(seeds: Sequence[int]) -> list[tuple[int, dict[str, Any]]]:
+    """Every grid cell x every seed yaw x ``seeds``: the part-one expert sweep."""
+    return [
+        (seed, {"cube_grid_position": cell, "cube_rotation_deg": yaw})
+        for cell in range(placement.NUM_GRID_CELLS)
+        for yaw in placement.GRID_YAWS_DEG
+        for seed in seeds
+    ]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -47,7 +93,7 @@ class GridStart:
 class CubeGridTask(Task):
     """A task with one cube that starts on a grid cell (base of lift and pick-and-place)."""
 
-    option_keys: ClassVar[tuple[str, ...]] = placement.GRID_OPTION_KEYS
+    option_keys: ClassVar[tuple[str, ...]] = GRID_OPTION_KEYS
     cube = CUBE.name
 
     def __init__(self, spec) -> None:
@@ -55,7 +101,7 @@ class CubeGridTask(Task):
         self.start: GridStart | None = None
 
     def validate_options(self, options: Mapping[str, Any]) -> dict[str, Any]:
-        return placement.validate_grid_options(options)
+        return validate_grid_options(options)
 
     def initialize_episode(
         self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
@@ -82,7 +128,7 @@ class CubeGridTask(Task):
 
     def evaluation_resets(self, seeds: int) -> list[tuple[int, dict[str, Any] | None]]:
         """The grid sweep: 9 cells x 4 yaws x ``seeds`` seeds (seeds 0 .. seeds-1)."""
-        return placement.grid_evaluation_resets(range(seeds))
+        return grid_evaluation_resets(range(seeds))
 
     # --- shared reward pieces --------------------------------------------------------
     def _reach(self, physics: SoArmPhysics) -> float:

@@ -6,9 +6,7 @@ Tasks choose; both draw only from the generator they are given.
 from __future__ import annotations
 
 import math
-import numbers
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -19,7 +17,6 @@ GRID_DX_M: tuple[float, float, float] = (-0.10, 0.0, 0.10)
 GRID_DY_M: tuple[float, float, float] = (-0.075, 0.0, 0.075)
 NUM_GRID_CELLS = 9
 GRID_YAWS_DEG: tuple[float, ...] = (0.0, 30.0, 45.0, 60.0)
-GRID_OPTION_KEYS: tuple[str, ...] = ("cube_grid_position", "cube_rotation_deg")
 
 
 def grid_cell_offset(cell: int) -> tuple[float, float]:
@@ -39,36 +36,6 @@ def yaw_quaternion(yaw_deg: float) -> np.ndarray:
     return np.array([math.cos(half), 0.0, 0.0, math.sin(half)])
 
 
-def validate_grid_options(options: Mapping[str, Any]) -> dict[str, Any]:
-    """Check ``cube_grid_position`` (int 0-8 or None) and ``cube_rotation_deg`` (finite or None)."""
-    cell = options.get("cube_grid_position")
-    if cell is not None:
-        if isinstance(cell, (bool, np.bool_)) or not isinstance(cell, numbers.Integral):
-            raise ValueError(
-                "cube_grid_position must be an int from 0 to 8 or None (random cell); "
-                f"got {cell!r} of type {type(cell).__name__}."
-            )
-        if not 0 <= int(cell) < NUM_GRID_CELLS:
-            raise ValueError(
-                f"cube_grid_position must be from 0 to {NUM_GRID_CELLS - 1} or None; got {cell!r}."
-            )
-        cell = int(cell)
-    yaw = options.get("cube_rotation_deg")
-    if yaw is not None:
-        if isinstance(yaw, (bool, np.bool_)) or not isinstance(yaw, numbers.Real):
-            raise ValueError(
-                "cube_rotation_deg must be a finite number of degrees or None (random pick from "
-                f"{GRID_YAWS_DEG}); got {yaw!r} of type {type(yaw).__name__}. Pass e.g. 45.0."
-            )
-        if not math.isfinite(float(yaw)):
-            raise ValueError(
-                f"cube_rotation_deg must be a finite number of degrees; got {yaw!r}. Pass "
-                "e.g. 45.0, or None for a random pick."
-            )
-        yaw = float(yaw)
-    return {"cube_grid_position": cell, "cube_rotation_deg": yaw}
-
-
 def draw_grid_start(
     rng: np.random.Generator, cell: int | None, yaw_deg: float | None
 ) -> tuple[int, float]:
@@ -78,16 +45,6 @@ def draw_grid_start(
     if yaw_deg is None:
         yaw_deg = float(GRID_YAWS_DEG[int(rng.integers(len(GRID_YAWS_DEG)))])
     return cell, float(yaw_deg)
-
-
-def grid_evaluation_resets(seeds: Sequence[int]) -> list[tuple[int, dict[str, Any]]]:
-    """Every grid cell x every seed yaw x ``seeds``: the part-one expert sweep."""
-    return [
-        (seed, {"cube_grid_position": cell, "cube_rotation_deg": yaw})
-        for cell in range(NUM_GRID_CELLS)
-        for yaw in GRID_YAWS_DEG
-        for seed in seeds
-    ]
 
 
 def draw_uniform_positions(

@@ -9,7 +9,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from types import MappingProxyType
 
-from gymnasium.envs.registration import register, registry
+import gymnasium as gym
+from gymnasium.envs.registration import parse_env_id, register, registry
 
 from gym_soarm.tasks.base import TaskSpec
 from gym_soarm.validation import ArgumentTypeError
@@ -41,6 +42,19 @@ def register_task(spec: TaskSpec) -> TaskSpec:
         raise ArgumentTypeError(f"register_task expects a TaskSpec; got {type(spec).__name__}.")
     if _TASKS.get(spec.name) == spec:
         return spec  # the same module imported twice
+    for env_id in spec.env_ids:
+        try:
+            parse_env_id(env_id)
+        except gym.error.Error as exc:
+            raise ValueError(f"cannot register {spec.name!r}: {exc}") from None
+        existing = registry.get(env_id)
+        if existing is not None and (
+            existing.entry_point != ENTRY_POINT or existing.kwargs.get("task") != spec.name
+        ):
+            raise ValueError(
+                f"cannot register {spec.name!r}: gym id {env_id!r} already belongs to "
+                f"{existing.entry_point} ({existing.kwargs}). Choose another id."
+            )
     spellings = (spec.name, *spec.aliases, *spec.env_ids)
     taken = [s for s in spellings if s in _SPELLINGS]
     if taken:
@@ -48,11 +62,7 @@ def register_task(spec: TaskSpec) -> TaskSpec:
             f"cannot register {spec.name!r}: {taken} already name "
             f"{sorted({_SPELLINGS[s] for s in taken})}. Choose another name or alias."
         )
-    _TASKS[spec.name] = spec
-    for spelling in spellings:
-        _SPELLINGS[spelling] = spec.name
     for env_id in spec.env_ids:
-        _ENV_IDS[env_id] = (spec.name, spec.max_episode_steps)
         if env_id not in registry:
             register(
                 id=env_id,
@@ -60,6 +70,27 @@ def register_task(spec: TaskSpec) -> TaskSpec:
                 max_episode_steps=spec.max_episode_steps,
                 kwargs={"task": spec.name},
             )
+    _TASKS[spec.name] = spec
+    for spelling in spellings:
+        _SPELLINGS[spelling] = spec.name
+    for env_id in spec.env_ids:
+        _ENV_IDS[env_id] = (spec.name, spec.max_episode_steps)
+    return spec
+
+
+def unregister_task(name: str) -> TaskSpec:
+    """Remove a task (by name, alias or id) and its gym ids; returns its spec.
+
+    Raises:
+        ValueError: no such task.
+    """
+    spec = get_task(name)
+    del _TASKS[spec.name]
+    for spelling in [s for s, n in _SPELLINGS.items() if n == spec.name]:
+        del _SPELLINGS[spelling]
+    for env_id in spec.env_ids:
+        _ENV_IDS.pop(env_id, None)
+        registry.pop(env_id, None)
     return spec
 
 
@@ -79,7 +110,11 @@ def get_task(name: str) -> TaskSpec:
     Raises:
         ValueError: unknown name; the message lists the registered ones.
     """
-    resolved = _SPELLINGS.get(name) if isinstance(name, str) else None
+    if not isinstance(name, str):
+        raise ArgumentTypeError(
+            f"task must be a task name such as 'LiftCube-v0'; got {name!r} ({type(name).__name__})."
+        )
+    resolved = _SPELLINGS.get(name)
     if resolved is None:
         aliases = [s for s, n in _SPELLINGS.items() if s != n and "/" not in s and "-v" not in s]
         raise ValueError(

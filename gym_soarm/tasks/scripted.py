@@ -22,7 +22,7 @@ import numpy as np
 from gym_soarm import constants
 from gym_soarm.sim.kinematics import ArmKinematics, downward_rotation
 from gym_soarm.sim.physics import SoArmPhysics
-from gym_soarm.units import RADIANS, JointUnits, joint_units
+from gym_soarm.units import JointUnits
 
 _QUARTER_TURN_RAD = math.pi / 2
 
@@ -118,7 +118,8 @@ class ScriptedExpert:
     """State-reading scripted policy for one SO-101 environment (base of every task's expert).
 
     Subclasses list their phases after the grasp in :meth:`_after_grasp_phases` and
-    name the object to grasp in :meth:`grasp_object` (``"cube"`` unless overridden).
+    name the object to grasp in :meth:`grasp_object` (the scene's only object unless
+    overridden).
 
     Call :meth:`reset` after every ``env.reset(...)`` (the expert also restarts by itself
     when it sees the simulation clock go back) and ``expert(obs, info)`` for each action.
@@ -134,10 +135,7 @@ class ScriptedExpert:
     def __init__(self, env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> None:
         self.env = env.unwrapped
         self.config = config
-        conversion = getattr(self.env, "joint_units", None)
-        if not isinstance(conversion, JointUnits):
-            conversion = joint_units(getattr(self.env, "units", RADIANS))
-        self._units = conversion
+        self._units: JointUnits = self.env.joint_units
         physics: SoArmPhysics = self.env.physics
         self._kinematics = ArmKinematics(physics.model.ptr)
         self._n_arm = len(constants.ARM_JOINT_NAMES)
@@ -156,8 +154,17 @@ class ScriptedExpert:
         self._held_offset = np.zeros(3)
 
     def grasp_object(self) -> str:
-        """Name of the object the next grasp is for (tasks with several override this)."""
-        return "cube"
+        """Name of the object the next grasp is for: the scene's only object by default.
+
+        Experts of scenes with several objects override this.
+        """
+        names = self.env.physics.object_names
+        if len(names) != 1:
+            raise NotImplementedError(
+                f"{type(self).__name__} must name the object to grasp (override grasp_object); "
+                f"this scene has the objects {list(names)}."
+            )
+        return names[0]
 
     # --- public API ------------------------------------------------------------------
     @property

@@ -7,19 +7,19 @@ the two equal.
 
 from __future__ import annotations
 
-from gym_soarm.tasks import get_task, task_names
+from gym_soarm.tasks import BUILTIN_TASKS, get_task
 
 ENV_TABLE_START = "<!-- env-table:start -->"
 ENV_TABLE_END = "<!-- env-table:end -->"
 
 
 def env_table() -> str:
-    """The README's table of environments: one row per registered task."""
+    """The README's table of environments: one row per built-in task."""
     rows = [
         "| id | task | instruction | `max_episode_steps` | start |",
         "|---|---|---|---|---|",
     ]
-    for name in task_names():
+    for name in BUILTIN_TASKS:
         spec = get_task(name)
         ids = ", ".join(f"`{env_id}`" for env_id in spec.env_ids)
         instruction = (
