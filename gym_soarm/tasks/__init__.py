@@ -29,6 +29,8 @@ BUILTIN_TASK_MODULES: tuple[str, ...] = (
     "place_in_bin",
     "pick_and_place_cylinder",
     "open_drawer",
+    "pick_colored_cube",
+    "sort_cubes",
 )
 """The built-in task modules, in the order the registry (and the README) lists them."""
 

@@ -1,0 +1,320 @@
+"""``SortCubes-v0``: put the red cube on the red pad and the blue cube on the blue pad.
+
+Two 3 cm cubes, red and blue, start anywhere in the reachable region between the pads,
+beside the arm's home pose (not under it, where the overview camera cannot see them), at
+least 2 cm apart, with yaws in [0°, 90°). Two thin pads of the same colours lie on the
+table, fixed: red on the left at (-0.20, 0.27), blue on the right at (0.20, 0.27), each
+4 cm in radius (visual only: a cube rests on the table beneath its pad).
+
+Success: every cube's centre is within its own pad's radius, its bottom within 5 mm of
+the pad's top, neither jaw touches it and it is at rest.
+
+Reward terms, each in [0, 1] and never falling as the task progresses:
+
+* ``red_sorted``, ``blue_sorted``: 1 while that cube lies on its pad, out of the jaws.
+* ``reach``, ``grasp``, ``lift``, ``place``: the pick-and-place stages of the cube being
+  worked on (of the unsorted cubes, the one furthest along), shared with the cubes
+  already sorted: each stage term is (sorted cubes + this cube's stage) / cubes, so a
+  sorted cube counts every stage as complete and moving on to the next cube loses
+  nothing.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+
+from gym_soarm import constants
+from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
+from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.tasks import placement
+from gym_soarm.tasks.base import (
+    RewardWeights,
+    Task,
+    TaskSpec,
+    position_field,
+    quaternion_field,
+    tolerance,
+)
+from gym_soarm.tasks.pick_colored_cube import draw_beside_arm
+from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase, PlaceExpert
+
+CUBE_SIZE_M = 0.03
+CUBE_HALF_M = CUBE_SIZE_M / 2
+COLOURS: tuple[str, ...] = ("red", "blue")
+"""The cubes' and pads' colours, in sorting order: ``<colour>_cube`` goes on ``<colour>_pad``."""
+PAD_POSITIONS_M: dict[str, tuple[float, float, float]] = {
+    "red": (-0.20, 0.27, 0.0),
+    "blue": (0.20, 0.27, 0.0),
+}
+PAD_RADIUS_M = 0.04
+PAD_TOP_Z_M = 0.001
+
+CUBES: tuple[SceneObject, ...] = tuple(
+    SceneObject(
+        name=f"{colour}_cube",
+        shape="box",
+        size_m=(CUBE_HALF_M, CUBE_HALF_M, CUBE_HALF_M),
+        colour=colour,
+        mass_kg=0.02,
+        position_m=(-0.05 + 0.1 * i, 0.35),
+    )
+    for i, colour in enumerate(COLOURS)
+)
+PADS: tuple[Fixture, ...] = tuple(
+    Fixture(
+        name=f"{colour}_pad",
+        position_m=PAD_POSITIONS_M[colour],
+        geoms=(
+            FixtureGeom(
+                "cylinder",
+                (PAD_RADIUS_M, 0.0005),
+                colour,
+                (0.0, 0.0, 0.0005),
+                collides=False,
+                emission=0.2,
+            ),
+        ),
+        site_m=(0.0, 0.0, PAD_TOP_Z_M),
+    )
+    for colour in COLOURS
+)
+"""Thin discs on the table, one per colour (visual only)."""
+
+START_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.12, 0.12), (0.26, 0.40))
+"""Where the cubes' centres start: ((x_min, x_max), (y_min, y_max)), between the pads and
+beside the arm's home pose (:func:`~gym_soarm.tasks.pick_colored_cube.draw_beside_arm`)."""
+CUBE_GAP_M = 0.02
+YAW_RANGE_DEG: tuple[float, float] = (0.0, 90.0)
+
+REACH_MARGIN_M = 0.10
+REACH_HEADROOM_M = 0.10
+LIFT_HEIGHT_M = 0.05
+"""The height a carried cube counts as lifted at."""
+PLACE_HEIGHT_TOL_M = 0.005
+PLACE_MARGIN_M = 0.20
+RESTING_SPEED_M_S = 0.05
+# Share of the place stage earned by carrying the held cube over its pad, and by a cube
+# on its pad that is still in the jaws; letting go earns the rest.
+PLACE_CARRY_CREDIT = 0.8
+PLACE_ON_PAD_CREDIT = 0.9
+STAGES: tuple[str, ...] = ("reach", "grasp", "lift", "place")
+# How far along a cube is, to choose the one worked on (the stages' weights in a single
+# pick-and-place).
+_STAGE_WEIGHTS: dict[str, float] = {"reach": 0.1, "grasp": 0.2, "lift": 0.3, "place": 0.4}
+
+
+def cube_name(colour: str) -> str:
+    """``"red"`` -> ``"red_cube"``."""
+    return f"{colour}_cube"
+
+
+def pad_name(colour: str) -> str:
+    """``"red"`` -> ``"red_pad"``."""
+    return f"{colour}_pad"
+
+
+class SortCubesTask(Task):
+    """Put each cube on the pad of its colour, released and at rest."""
+
+    weights = RewardWeights(
+        {
+            "reach": 0.1,
+            "grasp": 0.15,
+            "lift": 0.2,
+            "place": 0.25,
+            **{f"{colour}_sorted": 0.3 / len(COLOURS) for colour in COLOURS},
+        }
+    )
+    state_fields: ClassVar = (
+        *(
+            field
+            for colour in COLOURS
+            for field in (
+                position_field(f"{colour}_cube_pos", f"{colour}_cube"),
+                quaternion_field(f"{colour}_cube_quat_wxyz", f"{colour}_cube"),
+            )
+        ),
+        *(position_field(f"{colour}_pad_pos", f"{colour}_pad") for colour in COLOURS),
+        position_field("gripper_pos", "gripper"),
+    )
+
+    def initialize_episode(
+        self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
+    ) -> None:
+        physics.reset_to_home()
+        radii = [cube.footprint_radius_m for cube in CUBES]
+        keep_clear = [(x, y, PAD_RADIUS_M) for x, y, _ in PAD_POSITIONS_M.values()]
+        positions = draw_beside_arm(
+            rng, radii, START_REGION_M, keep_clear=keep_clear, gap_m=CUBE_GAP_M
+        )
+        for cube, (x, y) in zip(CUBES, positions, strict=True):
+            yaw = float(rng.uniform(*YAW_RANGE_DEG))
+            physics.set_object_pose(
+                cube.name,
+                np.array([x, y, constants.TABLE_TOP_Z_M + CUBE_HALF_M]),
+                placement.yaw_quaternion(yaw),
+            )
+
+    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
+        parts: list[np.ndarray] = []
+        for colour in COLOURS:
+            position, quaternion = physics.object_pose(cube_name(colour))
+            parts += [position, quaternion]
+        parts += [physics.fixture_position(pad_name(colour)) for colour in COLOURS]
+        parts.append(physics.gripper_position())
+        return np.concatenate(parts)
+
+    # --- per cube ----------------------------------------------------------------------
+    def pad_distance(self, physics: SoArmPhysics, colour: str) -> float:
+        """Horizontal distance (m) from the cube's centre to its own pad's centre."""
+        cx, cy, _ = physics.object_position(cube_name(colour)).tolist()
+        px, py, _ = physics.fixture_position(pad_name(colour)).tolist()
+        return math.hypot(cx - px, cy - py)
+
+    def on_pad(self, physics: SoArmPhysics, colour: str, distance: float | None = None) -> bool:
+        """Whether the cube of ``colour`` lies on its own pad (held or not)."""
+        if distance is None:
+            distance = self.pad_distance(physics, colour)
+        if distance > PAD_RADIUS_M:
+            return False
+        return abs(physics.object_height(cube_name(colour)) - PAD_TOP_Z_M) <= PLACE_HEIGHT_TOL_M
+
+    def is_sorted(self, physics: SoArmPhysics, colour: str) -> bool:
+        """Whether the cube of ``colour`` lies on its own pad, out of the jaws."""
+        return self.on_pad(physics, colour) and not physics.touched_by_jaws(cube_name(colour))
+
+    def unsorted(self, physics: SoArmPhysics) -> tuple[str, ...]:
+        """The colours whose cube is not yet sorted, in sorting order."""
+        return tuple(colour for colour in COLOURS if not self.is_sorted(physics, colour))
+
+    def _reach(self, physics: SoArmPhysics, cube: str) -> float:
+        """How close the jaws are to ``cube``: horizontally, and in height once more than
+        :data:`REACH_HEADROOM_M` above it (so rising off a placed cube loses nothing)."""
+        dx, dy, dz = (physics.grasp_center() - physics.object_position(cube)).tolist()
+        distance = math.hypot(dx, dy, max(abs(dz) - REACH_HEADROOM_M, 0.0))
+        return tolerance(distance, 0.01, REACH_MARGIN_M)
+
+    def stages(self, physics: SoArmPhysics, colour: str) -> dict[str, float]:
+        """The pick-and-place stages of one unsorted cube, each in [0, 1]."""
+        cube = cube_name(colour)
+        distance = self.pad_distance(physics, colour)
+        if self.on_pad(physics, colour, distance):
+            # On its pad but still touched by a jaw: only letting go is missing.
+            return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACE_ON_PAD_CREDIT}
+        if not physics.grasped(cube):
+            return {
+                "reach": self._reach(physics, cube),
+                "grasp": 0.0,
+                "lift": 0.0,
+                "place": 0.0,
+            }
+        # A held cube over its pad counts as lifted, so lowering it onto the pad loses nothing.
+        if distance <= PAD_RADIUS_M:
+            lift = 1.0
+        else:
+            lift = min(max(physics.object_height(cube) / LIFT_HEIGHT_M, 0.0), 1.0)
+        near = tolerance(distance, PAD_RADIUS_M / 2, PLACE_MARGIN_M)
+        return {"reach": 1.0, "grasp": 1.0, "lift": lift, "place": PLACE_CARRY_CREDIT * near * lift}
+
+    # --- success and reward ----------------------------------------------------------------
+    def is_success(self, physics: SoArmPhysics) -> bool:
+        return all(
+            self.is_sorted(physics, colour)
+            and physics.object_speed(cube_name(colour)) < RESTING_SPEED_M_S
+            for colour in COLOURS
+        )
+
+    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
+        if self.is_success(physics) if success is None else success:
+            return dict.fromkeys(self.weights.terms, 1.0)
+        unsorted = self.unsorted(physics)
+        terms = {f"{colour}_sorted": float(colour not in unsorted) for colour in COLOURS}
+        done = len(COLOURS) - len(unsorted)
+        if unsorted:
+            # The cube furthest along is the one being worked on (the first on a tie).
+            progress = [self.stages(physics, colour) for colour in unsorted]
+            # Reaching alone does not count here, so the cube reached for is the first
+            # unsorted one until another is held or on its pad.
+            current = max(
+                progress,
+                key=lambda s: sum(_STAGE_WEIGHTS[k] * s[k] for k in ("grasp", "lift", "place")),
+            )
+        else:
+            current = dict.fromkeys(STAGES, 0.0)
+        for stage in STAGES:
+            terms[stage] = (done + current[stage]) / len(COLOURS)
+        return terms
+
+    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+        unsorted = self.unsorted(physics)
+        return {
+            "cubes_sorted": len(COLOURS) - len(unsorted),
+            **{
+                f"{colour}_cube_pos": physics.object_position(cube_name(colour))
+                for colour in COLOURS
+            },
+        }
+
+
+class SortCubesExpert(PlaceExpert):
+    """Pick and place each unsorted cube onto its pad in turn, in :data:`COLOURS` order.
+
+    After each retreat a ``next`` phase looks at the table again: it plans a new grasp
+    (approach, descend, close) and placement for the first cube not yet on its pad, which
+    is the same cube again if its placement missed, or ends the script when all are sorted.
+    """
+
+    def __init__(self, env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> None:
+        super().__init__(env, config)
+        self._colour = COLOURS[0]
+
+    def grasp_object(self) -> str:
+        return cube_name(self._colour)
+
+    def place_target(self) -> np.ndarray:
+        pad = self.env.physics.fixture_position(pad_name(self._colour))
+        return np.array([pad[0], pad[1], constants.TABLE_TOP_Z_M + CUBE_HALF_M])
+
+    def reset(self) -> None:
+        unsorted = self.env.task_logic.unsorted(self.env.physics)
+        self._colour = unsorted[0] if unsorted else COLOURS[0]
+        super().reset()
+
+    def _after_grasp_phases(self) -> list[Phase]:
+        return [*super()._after_grasp_phases(), Phase("next", 1, self._begin_next)]
+
+    def _begin_retreat(self) -> None:
+        # Straight up with the jaws open: the open jaws let go of the cube, and the next
+        # cube stays as near as it was.
+        site, _ = self._kinematics.site_pose(self._command[: self._n_arm])
+        site[2] = max(self.config.retreat_height_m, site[2])
+        self._line_move(site, self._yaw)
+        self._gripper(self.config.gripper_open_rad)
+
+    def _begin_next(self) -> None:
+        self._hold_arm()
+        unsorted = self.env.task_logic.unsorted(self.env.physics)
+        if not unsorted:
+            return
+        self._colour = unsorted[0]
+        self._regrasps = 0
+        self._plan[self._phase_index :] = [*self._grasp_phases(), *self._after_grasp_phases()]
+        self._begin_phase()
+
+
+SPEC = TaskSpec(
+    name="SortCubes-v0",
+    task=SortCubesTask,
+    expert=SortCubesExpert,
+    max_episode_steps=750,
+    scene=Scene(objects=CUBES, fixtures=PADS),
+    instructions=("Put the red cube on the red pad and the blue cube on the blue pad.",),
+    summary="sort the red and blue cubes onto the pads of their colours",
+    default_placement="uniform",
+    aliases=("sort_cubes",),
+)
