@@ -10,13 +10,18 @@ Success: the named cube's bottom is at least 5 cm above the table while both jaw
 it, and the other two still rest on the table (their bottoms below 5 mm).
 
 Reward terms (on the named cube only; a held wrong cube earns nothing): ``reach`` (jaws
-near it), ``grasp`` (both pads on it), ``lift`` (its height towards 5 cm while held).
+near it), ``grasp`` (both pads on it), ``lift`` (its height towards 5 cm while held, and
+only while the other two stay on the table).
+
+``environment_state``: each cube's position and quaternion (red, green, blue), the named
+cube's position again (``target_pos``) and the gripper's position. ``info`` adds
+``target_colour`` and ``target_pos``. The expert is the lift expert aimed at the named cube.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -54,9 +59,9 @@ CUBES: tuple[SceneObject, ...] = tuple(
 CUBE_NAMES: tuple[str, ...] = tuple(cube.name for cube in CUBES)
 
 START_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.13, 0.13), (0.26, 0.40))
-"""Where the cubes' centres start: ((x_min, x_max), (y_min, y_max)), within easy reach, ..."""
+"""Where the cubes' centres start: ((x_min, x_max), (y_min, y_max)), within easy reach."""
 ARM_LANE_HALF_WIDTH_M = 0.045
-"""... but not under the arm's home pose: centres stay this far from the x = 0 plane, so the
+"""Centres keep this far from x = 0, out of the lane under the arm's home pose, so that the
 overview camera, looking down past the arm, sees every cube at reset."""
 CUBE_GAP_M = 0.02
 """Free space left between the footprints of any two cubes, so the open jaws fit."""
@@ -70,10 +75,10 @@ REACH_MARGIN_M = 0.10
 
 def draw_beside_arm(
     rng: np.random.Generator,
-    radii_m: list[float],
+    radii_m: Sequence[float],
     region_m: tuple[tuple[float, float], tuple[float, float]] = START_REGION_M,
     lane_half_width_m: float = ARM_LANE_HALF_WIDTH_M,
-    keep_clear: list[tuple[float, float, float]] | None = None,
+    keep_clear: Sequence[tuple[float, float, float]] = (),
     gap_m: float = CUBE_GAP_M,
     max_tries: int = 1000,
 ) -> list[tuple[float, float]]:
@@ -99,7 +104,7 @@ def draw_beside_arm(
             f"region_m's x range must be symmetric about 0 and wider than the lane "
             f"(±{lane_half_width_m} m); got {region_m!r}."
         )
-    placed: list[tuple[float, float, float]] = list(keep_clear or ())
+    placed: list[tuple[float, float, float]] = list(keep_clear)
     positions: list[tuple[float, float]] = []
     for radius in radii_m:
         for _ in range(max_tries):

@@ -1,22 +1,32 @@
-"""``SortCubes-v0``: put the red cube on the red pad and the blue cube on the blue pad.
+"""``SortCubes-v0``: put the red, green and blue cubes on the pads of their colours.
 
-Two 3 cm cubes, red and blue, start anywhere in the reachable region between the pads,
-beside the arm's home pose (not under it, where the overview camera cannot see them), at
-least 2 cm apart, with yaws in [0°, 90°). Two thin pads of the same colours lie on the
-table, fixed: red on the left at (-0.20, 0.27), blue on the right at (0.20, 0.27), each
-4 cm in radius (visual only: a cube rests on the table beneath its pad).
+Three 3 cm cubes, red, green and blue, start anywhere in the reachable region between
+the pads, beside the arm's home pose (not under it, where the overview camera cannot see
+them), at least 2 cm apart, with yaws in [0°, 90°). Three thin pads of the same colours
+lie on the table, fixed: red on the left at (-0.20, 0.27), blue on the right at
+(0.20, 0.27) and green at the back left at (-0.10, 0.44), each 4 cm in radius (visual
+only: a cube rests on the table beneath its pad).
 
 Success: every cube's centre is within its own pad's radius, its bottom within 5 mm of
 the pad's top, neither jaw touches it and it is at rest.
 
 Reward terms, each in [0, 1] and never falling as the task progresses:
 
-* ``red_sorted``, ``blue_sorted``: 1 while that cube lies on its pad, out of the jaws.
+* ``red_sorted``, ``green_sorted``, ``blue_sorted``: 1 while that cube lies on its pad,
+  out of the jaws.
 * ``reach``, ``grasp``, ``lift``, ``place``: the pick-and-place stages of the cube being
-  worked on (of the unsorted cubes, the one furthest along), shared with the cubes
-  already sorted: each stage term is (sorted cubes + this cube's stage) / cubes, so a
-  sorted cube counts every stage as complete and moving on to the next cube loses
-  nothing.
+  worked on, shared with the cubes already sorted: each stage term is (sorted cubes +
+  this cube's stage) / cubes, so a sorted cube counts every stage as complete and moving
+  on to the next cube loses nothing. The cube worked on is the unsorted one furthest
+  along (held, or on its pad), else the first unsorted one in the order red, green, blue;
+  ``reach`` measures the jaws' horizontal distance to it, and their height only beyond
+  10 cm above it.
+
+``environment_state``: each cube's position and quaternion, each pad's position and the
+gripper's position. ``info`` adds ``cubes_sorted`` and each ``<colour>_cube_pos``.
+
+The expert sorts the cubes in that order: one pick-and-place cycle each, with the jaws
+rising straight up, open, after each release.
 """
 
 from __future__ import annotations
@@ -45,10 +55,11 @@ from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase, PlaceE
 
 CUBE_SIZE_M = 0.03
 CUBE_HALF_M = CUBE_SIZE_M / 2
-COLOURS: tuple[str, ...] = ("red", "blue")
+COLOURS: tuple[str, ...] = ("red", "green", "blue")
 """The cubes' and pads' colours, in sorting order: ``<colour>_cube`` goes on ``<colour>_pad``."""
 PAD_POSITIONS_M: dict[str, tuple[float, float, float]] = {
     "red": (-0.20, 0.27, 0.0),
+    "green": (-0.10, 0.44, 0.0),
     "blue": (0.20, 0.27, 0.0),
 }
 PAD_RADIUS_M = 0.04
@@ -61,7 +72,7 @@ CUBES: tuple[SceneObject, ...] = tuple(
         size_m=(CUBE_HALF_M, CUBE_HALF_M, CUBE_HALF_M),
         colour=colour,
         mass_kg=0.02,
-        position_m=(-0.05 + 0.1 * i, 0.35),
+        position_m=(-0.08 + 0.08 * i, 0.30),
     )
     for i, colour in enumerate(COLOURS)
 )
@@ -85,7 +96,7 @@ PADS: tuple[Fixture, ...] = tuple(
 )
 """Thin discs on the table, one per colour (visual only)."""
 
-START_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.12, 0.12), (0.26, 0.40))
+START_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.12, 0.12), (0.26, 0.36))
 """Where the cubes' centres start: ((x_min, x_max), (y_min, y_max)), between the pads and
 beside the arm's home pose (:func:`~gym_soarm.tasks.pick_colored_cube.draw_beside_arm`)."""
 CUBE_GAP_M = 0.02
@@ -93,6 +104,7 @@ YAW_RANGE_DEG: tuple[float, float] = (0.0, 90.0)
 
 REACH_MARGIN_M = 0.10
 REACH_HEADROOM_M = 0.10
+"""Height above a cube within which ``reach`` ignores the jaws' height."""
 LIFT_HEIGHT_M = 0.05
 """The height a carried cube counts as lifted at."""
 PLACE_HEIGHT_TOL_M = 0.005
@@ -289,8 +301,9 @@ class SortCubesExpert(PlaceExpert):
         return [*super()._after_grasp_phases(), Phase("next", 1, self._begin_next)]
 
     def _begin_retreat(self) -> None:
-        # Straight up with the jaws open: the open jaws let go of the cube, and the next
-        # cube stays as near as it was.
+        # Straight up with the jaws open. The base retreat slides sideways first, which
+        # moves the jaws away from the next cube, and sets no gripper motion of its own, so
+        # the release's (closed to open) would play again and pick the placed cube back up.
         site, _ = self._kinematics.site_pose(self._command[: self._n_arm])
         site[2] = max(self.config.retreat_height_m, site[2])
         self._line_move(site, self._yaw)
@@ -311,10 +324,10 @@ SPEC = TaskSpec(
     name="SortCubes-v0",
     task=SortCubesTask,
     expert=SortCubesExpert,
-    max_episode_steps=750,
+    max_episode_steps=1000,
     scene=Scene(objects=CUBES, fixtures=PADS),
-    instructions=("Put the red cube on the red pad and the blue cube on the blue pad.",),
-    summary="sort the red and blue cubes onto the pads of their colours",
+    instructions=("Put the red, green and blue cubes on the pads of their colours.",),
+    summary="sort three cubes onto the pads of their colours",
     default_placement="uniform",
     aliases=("sort_cubes",),
 )

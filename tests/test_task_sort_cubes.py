@@ -1,0 +1,66 @@
+"""SortCubes-v0: a cube counts on its own pad only, and the expert sorts them one by one."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from gym_soarm.expert import make_expert
+from gym_soarm.tasks.placement import yaw_quaternion
+from gym_soarm.tasks.sort_cubes import COLOURS, CUBE_HALF_M, cube_name, pad_name
+
+
+@pytest.fixture
+def env():
+    env = gym.make("gym_soarm/SortCubes-v0", obs_type="environment_state_agent_pos")
+    yield env
+    env.close()
+
+
+def _put_cubes_on_pads(env, pads: dict[str, str]) -> dict:
+    """Rest each cube (by colour) on the pad named by ``pads``; return the settled info."""
+    physics = env.unwrapped.physics
+    with physics.reset_context():
+        for colour, pad_colour in pads.items():
+            x, y, _ = physics.fixture_position(pad_name(pad_colour))
+            physics.set_object_pose(
+                cube_name(colour), np.array([x, y, CUBE_HALF_M]), yaw_quaternion(20.0)
+            )
+    hold = physics.joint_angles().astype(np.float32)
+    for _ in range(10):
+        _, _, _, _, info = env.step(hold)
+    return info
+
+
+def test_cubes_on_their_own_pads_succeed(env):
+    env.reset(seed=0)
+    info = _put_cubes_on_pads(env, {colour: colour for colour in COLOURS})
+    assert info["is_success"] and info["cubes_sorted"] == len(COLOURS)
+    assert all(v == 1.0 for v in info["reward_terms"].values())
+
+
+def test_a_cube_on_another_colour_s_pad_does_not_count(env):
+    env.reset(seed=0)
+    red, green, blue = COLOURS
+    info = _put_cubes_on_pads(env, {red: blue, green: green, blue: red})
+    terms = info["reward_terms"]
+    assert not info["is_success"] and info["cubes_sorted"] == 1
+    assert terms[f"{green}_sorted"] == 1.0
+    assert terms[f"{red}_sorted"] == terms[f"{blue}_sorted"] == 0.0
+
+
+def test_the_expert_sorts_one_cube_after_another_and_none_comes_undone(env):
+    expert = make_expert(env)
+    obs, info = env.reset(seed=3)
+    expert.reset()
+    order: list[str] = []
+    while True:
+        obs, _, terminated, truncated, info = env.step(expert(obs, info))
+        sorted_now = [c for c in COLOURS if info["reward_terms"][f"{c}_sorted"] == 1.0]
+        assert set(order) <= set(sorted_now), f"{order} were sorted; now only {sorted_now}"
+        order += [c for c in sorted_now if c not in order]
+        if terminated or truncated:
+            break
+    assert info["is_success"]
+    assert order == list(COLOURS)
