@@ -176,7 +176,7 @@ def test_pixels_are_fresh_arrays_every_step(make_env):
         ({"render_camera": "side_camera"}, "render_camera must be one of"),
         ({"render_quality": "ultra"}, "render_quality must be one of"),
         ({"reward_type": "shaped"}, "reward_type must be one of"),
-        ({"task": "stack"}, "task must be one of"),
+        ({"task": "juggle"}, "task must be one of"),
     ],
 )
 @pytest.mark.filterwarnings("ignore:.*not in the possible render_modes:UserWarning")

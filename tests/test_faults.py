@@ -156,7 +156,7 @@ BAD_MAKE_KWARGS = [
     ("render_camera", "side_camera"),
     ("render_quality", "ultra"),
     ("reward_type", "shaped"),
-    ("task", "stack"),
+    ("task", "juggle"),
     ("units", "furlongs"),
 ]
 BAD_OPTIONS = [
