@@ -386,3 +386,16 @@ def test_dense_reward_is_the_weighted_sum_of_its_terms(state_env):
         terms = info["reward_terms"]
         assert all(0.0 <= v <= 1.0 for v in terms.values())
         assert reward == pytest.approx(sum(weights[k] * terms[k] for k in weights))
+
+
+def test_a_cube_pressed_onto_the_table_does_not_sink_into_it(state_env):
+    """40 N, about what a closing jaw can press with, sinks the cube less than a millimetre."""
+    state_env.reset(seed=0, options={"cube_grid_position": 4, "cube_rotation_deg": 0})
+    base = state_env.unwrapped
+    physics = base.physics
+    cube = physics.model.ptr.body("cube").id
+    hold = physics.joint_angles().astype(np.float32)
+    for _ in range(25):
+        physics.data.xfrc_applied[cube, 2] = -40.0
+        base.step(hold)
+    assert -1e-3 < physics.object_height("cube") < 0.0
