@@ -26,12 +26,14 @@ from gym_soarm.validation import (
     ArgumentTypeError,
     check_choice,
     check_image_size,
+    check_subset,
     choices,
     resolve_camera_config,
 )
 
 OBS_TYPES = ("pixels", "pixels_agent_pos", "environment_state_agent_pos")
 REWARD_TYPES = ("dense", "sparse")
+IMAGE_MODALITIES = ("rgb", "depth", "segmentation")
 # LeRobot's evaluation (lerobot >= 0.6) marks the start of every rollout with this reset
 # option; it is accepted and has no effect.
 LEROBOT_ROLLOUT_OPTION = "lerobot_new_rollout"
@@ -70,6 +72,13 @@ class SoArmEnv(gym.Env):
       cube position (3, m), cube quaternion (w, x, y, z), ``gripperframe`` site position
       (3, m) and goal position (3, m)). Renders nothing.
 
+    With ``image_modalities`` beyond ``("rgb",)``, pixel observations hold one dict of
+    cameras per modality, keyed ``"pixels"`` (uint8 (H, W, 3), when ``"rgb"`` is asked),
+    ``"depth"`` (float32 (H, W), metres along the camera axis, up to the far plane) and
+    ``"segmentation"`` (int32 (H, W), ids of :attr:`segmentation_ids`): ``"pixels"``
+    observations become ``{"pixels": {...}, "depth": {...}, ...}`` and
+    ``"pixels_agent_pos"`` ones gain the keys beside ``"pixels"`` and ``"agent_pos"``.
+
     ``agent_pos`` holds the six joint positions in the units of the action: radians by
     default; with ``units="lerobot"`` the body joints in degrees and the gripper in 0 to
     100 (0 = closed), as LeRobot's SO-101 follower; with ``units="lerobot_range"`` the
@@ -100,6 +109,9 @@ class SoArmEnv(gym.Env):
         wrist_roll_offset_deg: with LeRobot units, the real arm's wrist_roll reading
             (degrees, -180 to 180) when the model's wrist_roll is at 0 rad; wrist_roll
             values are shifted by it and wrapped to a turn (see :mod:`gym_soarm.units`).
+        image_modalities: images of each camera in pixel observations: a tuple of
+            ``"rgb"``, ``"depth"`` and ``"segmentation"`` (see above); only these are
+            rendered.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": constants.RENDER_FPS}
@@ -117,6 +129,7 @@ class SoArmEnv(gym.Env):
         reward_type: str = "dense",
         units: str = "radians",
         wrist_roll_offset_deg: float = 0.0,
+        image_modalities: Sequence[str] = ("rgb",),
     ) -> None:
         # Validate every argument before building anything.
         spec = get_task(task)
@@ -130,6 +143,7 @@ class SoArmEnv(gym.Env):
         check_choice("reward_type", reward_type, REWARD_TYPES)
         check_choice("units", units, UNITS)
         wrist_roll_offset_deg = check_wrist_roll_offset(units, wrist_roll_offset_deg)
+        modalities = check_subset("image_modalities", image_modalities, IMAGE_MODALITIES)
 
         self.render_mode = render_mode
         self.obs_type = obs_type
@@ -143,6 +157,10 @@ class SoArmEnv(gym.Env):
         self.units = units
         self.wrist_roll_offset_deg = wrist_roll_offset_deg
         self._units = joint_units(units, wrist_roll_offset_deg)
+        self.image_modalities = modalities
+        self._rgb = "rgb" in modalities
+        self._depth = "depth" in modalities
+        self._segmentation = "segmentation" in modalities
 
         # The render quality picks the visual meshes; the physics is the same for both.
         self._spec = spec
@@ -154,6 +172,7 @@ class SoArmEnv(gym.Env):
             name: self._physics.model.name2id(name, "camera") for name in constants.CAMERA_NAMES
         }
         self._renderers: dict[tuple[int, int], CameraRenderer] = {}
+        self._segment_of_geom = self._physics.geom_segments() if self._segmentation else None
         self._viewer = None
         self._closed = False
         self._needs_reset = True
@@ -188,10 +207,28 @@ class SoArmEnv(gym.Env):
         )
         # OrderedDict keeps our key order; Gymnasium sorts the keys of a plain dict.
         pixels = spaces.Dict(OrderedDict((name, image) for name in self.cameras))
-        if self.obs_type == "pixels":
+        if self.obs_type == "pixels" and self.image_modalities == ("rgb",):
             return pixels
-        if self.obs_type == "pixels_agent_pos":
-            return spaces.Dict(OrderedDict(pixels=pixels, agent_pos=agent_pos))
+        if self.obs_type in ("pixels", "pixels_agent_pos"):
+            size = (self.observation_height, self.observation_width)
+            far = float(
+                np.float32(self._physics.model.vis.map.zfar * self._physics.model.stat.extent)
+            )
+            depth = spaces.Box(0.0, far, size, dtype=np.float32)
+            n_segments = len(self.segmentation_ids)
+            segmentation = spaces.Box(0, n_segments - 1, size, dtype=np.int32)
+            layout: OrderedDict[str, spaces.Space] = OrderedDict()
+            if self._rgb:
+                layout["pixels"] = pixels
+            if self._depth:
+                layout["depth"] = spaces.Dict(OrderedDict((n, depth) for n in self.cameras))
+            if self._segmentation:
+                layout["segmentation"] = spaces.Dict(
+                    OrderedDict((n, segmentation) for n in self.cameras)
+                )
+            if self.obs_type == "pixels_agent_pos":
+                layout["agent_pos"] = agent_pos
+            return spaces.Dict(layout)
         env_state = spaces.Box(*self._task.state_bounds(), dtype=np.float64)
         return spaces.Dict(OrderedDict(agent_pos=agent_pos, environment_state=env_state))
 
@@ -230,6 +267,14 @@ class SoArmEnv(gym.Env):
     def state_names(self) -> tuple[str, ...]:
         """The name of each ``environment_state`` value (for datasets), in order."""
         return self._task.state_names
+
+    @property
+    def segmentation_ids(self) -> dict[str, int]:
+        """Ids of segmentation images: ``"background"`` 0 (floor and sky), ``"table"`` 1,
+        ``"robot"`` 2, then each object and fixture of the task's scene in declaration
+        order, objects first (e.g. ``{"cube": 3, "goal": 4}`` for pick-and-place).
+        """
+        return self._physics.segmentation_ids()
 
     @property
     def viewer(self) -> Any:
@@ -474,6 +519,8 @@ class SoArmEnv(gym.Env):
                 "agent_pos": self._units.from_radians(physics.joint_angles()),
                 "environment_state": self._task.environment_state(physics),
             }
+        elif self.image_modalities != ("rgb",):
+            obs = self._modality_observation()
         else:
             renderer = self._renderer_for(self.observation_height, self.observation_width)
             data = physics.data.ptr
@@ -487,6 +534,28 @@ class SoArmEnv(gym.Env):
                 }
         self._last_obs = obs
         return obs
+
+    def _modality_observation(self) -> dict[str, Any]:
+        """A pixel observation with a dict of cameras per asked image modality."""
+        renderer = self._renderer_for(self.observation_height, self.observation_width)
+        data = self._physics.data.ptr
+        images: dict[str, dict[str, np.ndarray]] = {
+            key: {} for key, asked in self._modality_keys() if asked
+        }
+        for name in self.cameras:
+            rgb, depth, segmentation = renderer.render_images(
+                data, self._camera_ids[name], self._rgb, self._depth, self._segment_of_geom
+            )
+            for key, image in (("pixels", rgb), ("depth", depth), ("segmentation", segmentation)):
+                if image is not None:
+                    images[key][name] = image
+        obs: dict[str, Any] = dict(images)
+        if self.obs_type == "pixels_agent_pos":
+            obs["agent_pos"] = self._units.from_radians(self._physics.joint_angles())
+        return obs
+
+    def _modality_keys(self) -> tuple[tuple[str, bool], ...]:
+        return (("pixels", self._rgb), ("depth", self._depth), ("segmentation", self._segmentation))
 
     def _info(
         self, success: bool | None = None, terms: dict[str, float] | None = None

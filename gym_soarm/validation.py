@@ -71,6 +71,36 @@ def check_number(name: str, value: Any, minimum: float | None = None, unit: str 
     return float(value)
 
 
+def check_subset(name: str, value: Any, valid: Sequence[str]) -> tuple[str, ...]:
+    """A non-empty sequence of distinct values from ``valid``, returned in ``valid``'s order."""
+    example = f"{name}={tuple(valid[:2])!r}"
+    if isinstance(value, str) or not isinstance(value, Sequence):
+        raise ArgumentTypeError(
+            f"{name} must be a tuple of values from {choices(valid)}; got {value!r} "
+            f"({type(value).__name__}). Pass e.g. {example}."
+        )
+    for item in value:
+        if not isinstance(item, str):
+            raise ArgumentTypeError(
+                f"{name} must hold strings from {choices(valid)}; got {item!r} "
+                f"({type(item).__name__}) in {value!r}. Pass e.g. {example}."
+            )
+    unknown = [item for item in value if item not in valid]
+    if unknown or not value or len(set(value)) != len(value):
+        problem = (
+            f"unknown {unknown!r}"
+            if unknown
+            else "nothing"
+            if not value
+            else f"repeated values in {list(value)!r}"
+        )
+        raise ValueError(
+            f"{name} must be a non-empty tuple of distinct values from {choices(valid)}; got "
+            f"{problem}. Pass e.g. {example}."
+        )
+    return tuple(v for v in valid if v in value)
+
+
 def check_image_size(name: str, value: Any) -> int:
     """An image height or width in pixels, from 16 to 2048."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):

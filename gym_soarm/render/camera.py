@@ -3,6 +3,9 @@
 * Contexts are created on first use, inside the process that renders (never inherited
   through ``fork``), one per image size, and reused for every frame.
 * Every frame is a fresh C-contiguous ``uint8`` array of shape (H, W, 3).
+* :meth:`CameraRenderer.render_images` also gives depth (float32 metres, read from the
+  depth buffer of the colour render) and segmentation (int32 segment ids, from a second
+  render with MuJoCo's segmentation and id-colour flags); only what is asked is drawn.
 """
 
 from __future__ import annotations
@@ -20,6 +23,8 @@ from gym_soarm.render.backend import RENDER_QUALITIES
 
 logger = logging.getLogger(__name__)
 
+# Geoms a scene can hold; segmentation codes (index + 1) then fit in 16 bits.
+_MAX_SCENE_GEOMS = 500
 _live_renderers: weakref.WeakSet[CameraRenderer] = weakref.WeakSet()
 _exit_hook_pid: int | None = None
 
@@ -74,6 +79,12 @@ class CameraRenderer:
         self._option = mujoco.MjvOption()
         self._viewport = mujoco.MjrRect(0, 0, self.width, self.height)
         self._buffer = np.empty((self.height, self.width, 3), dtype=np.uint8)
+        self._depth_buffer: np.ndarray | None = None
+        self._segment_buffer: np.ndarray | None = None
+        self._segment_lookup = np.zeros(0, dtype=np.int32)
+        self.render_count = 0
+        """How many times the scene was drawn (one per colour/depth frame, one more per
+        segmentation frame); tests read it to check that nothing extra is rendered."""
         self._closed = False
         _live_renderers.add(self)
 
@@ -95,13 +106,15 @@ class CameraRenderer:
         finally:
             model.vis.quality.shadowsize = shadowsize
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._mjr)
-        self._scene = mujoco.MjvScene(model, maxgeom=500)
+        # Depth is read as OpenGL keeps it (reversed z: 1 at the near plane, 0 at the far
+        # one), which _linear_depth inverts; colour images are not affected.
+        self._mjr.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
+        self._scene = mujoco.MjvScene(model, maxgeom=_MAX_SCENE_GEOMS)
         self._scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = high
         self._scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = high
         _close_all_at_exit()
 
-    def render(self, data: mujoco.MjData, camera_id: int) -> np.ndarray:
-        """Render camera ``camera_id`` into a new (H, W, 3) uint8 array."""
+    def _update_scene(self, data: mujoco.MjData, camera_id: int) -> None:
         if self._closed:
             raise RuntimeError("this renderer was closed; create the environment again to render")
         if self._gl is None:
@@ -118,9 +131,125 @@ class CameraRenderer:
             mujoco.mjtCatBit.mjCAT_ALL,
             self._scene,
         )
+
+    def render(self, data: mujoco.MjData, camera_id: int) -> np.ndarray:
+        """Render camera ``camera_id`` into a new (H, W, 3) uint8 array."""
+        self._update_scene(data, camera_id)
         mujoco.mjr_render(self._viewport, self._scene, self._mjr)
+        self.render_count += 1
         mujoco.mjr_readPixels(self._buffer, None, self._viewport, self._mjr)
         return np.ascontiguousarray(self._buffer[::-1])
+
+    def render_images(
+        self,
+        data: mujoco.MjData,
+        camera_id: int,
+        rgb: bool = True,
+        depth: bool = False,
+        segment_of_geom: np.ndarray | None = None,
+    ) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+        """Render the asked images of camera ``camera_id``, each a fresh array.
+
+        Colour and depth come from one render; segmentation takes a second one.
+
+        Args:
+            data: the simulation state to draw.
+            camera_id: a fixed camera of the model.
+            rgb: return the colour image, uint8 (H, W, 3).
+            depth: return the depth image, float32 (H, W): the distance in metres along
+                the camera's axis, up to the far clipping plane (:attr:`far_m`).
+            segment_of_geom: int32 array with one segment id per model geom; when given,
+                return the segmentation image, int32 (H, W), holding the segment id of
+                the geom seen at each pixel and 0 where no geom is (the sky).
+
+        Returns:
+            (rgb, depth, segmentation), None for each image not asked for.
+        """
+        self._update_scene(data, camera_id)
+        colour = distance = segments = None
+        if rgb or depth:
+            mujoco.mjr_render(self._viewport, self._scene, self._mjr)
+            self.render_count += 1
+            if depth and self._depth_buffer is None:
+                self._depth_buffer = np.empty((self.height, self.width), dtype=np.float32)
+            mujoco.mjr_readPixels(
+                self._buffer if rgb else None,
+                self._depth_buffer if depth else None,
+                self._viewport,
+                self._mjr,
+            )
+            if rgb:
+                colour = np.ascontiguousarray(self._buffer[::-1])
+            if depth:
+                distance = self._linear_depth()
+        if segment_of_geom is not None:
+            segments = self._render_segments(segment_of_geom)
+        return colour, distance, segments
+
+    @property
+    def far_m(self) -> float:
+        """The far clipping plane (m): the largest depth, where nothing was drawn."""
+        return float(np.float32(self._model.vis.map.zfar * self._model.stat.extent))
+
+    def _linear_depth(self) -> np.ndarray:
+        """The depth buffer (non-linear, reversed z: 1 near, 0 far) in metres."""
+        assert self._depth_buffer is not None and self._scene is not None
+        extent = self._model.stat.extent
+        # As OpenGL's projection matrix: float32 clipping planes, float64 arithmetic.
+        near = float(np.float32(self._model.vis.map.znear * extent))
+        far = float(np.float32(self._model.vis.map.zfar * extent))
+        z = self._depth_buffer[::-1].astype(np.float64)
+        if self._scene.camera[0].orthographic:
+            metres = far - z * (far - near)
+        else:
+            # MuJoCo renders with reversed z: the buffer holds near * (far / z - 1) /
+            # (far - near) for a point at distance z; this inverts it.
+            c = 0.5 * (far + near) / (far - near) - 0.5
+            d = far * near / (far - near)
+            metres = d / (z + c)
+        out = metres.astype(np.float32)
+        return np.clip(out, 0.0, np.float32(far), out=out)
+
+    def _render_segments(self, segment_of_geom: np.ndarray) -> np.ndarray:
+        """Draw every geom in a colour encoding its scene index and map it to segments."""
+        scene = self._scene
+        assert scene is not None
+        flags = scene.flags
+        saved = flags.copy()
+        rnd = mujoco.mjtRndFlag
+        flags[rnd.mjRND_SEGMENT] = True
+        flags[rnd.mjRND_IDCOLOR] = True
+        # A shadow or a reflection on the floor would paint it with another geom's id.
+        flags[rnd.mjRND_SHADOW] = False
+        flags[rnd.mjRND_REFLECTION] = False
+        try:
+            mujoco.mjr_render(self._viewport, scene, self._mjr)
+            self.render_count += 1
+        finally:
+            np.copyto(flags, saved)
+        if self._segment_buffer is None:
+            self._segment_buffer = np.empty((self.height, self.width, 3), dtype=np.uint8)
+            self._segment_lookup = np.zeros(1 << 16, dtype=np.int32)
+        mujoco.mjr_readPixels(self._segment_buffer, None, self._viewport, self._mjr)
+        # Pixel colour (r, g, b) = scene geom index + 1 in little-endian bytes, 0 where
+        # nothing was drawn. A scene holds at most _MAX_SCENE_GEOMS geoms, so blue is
+        # always 0: red and green, read as one little-endian uint16 straight from the
+        # buffer, index a table of every 16-bit code (a blended edge under multisampling
+        # may give a code of no geom, which stays 0).
+        ngeom = scene.ngeom
+        lookup = self._segment_lookup
+        lookup[: ngeom + 1] = 0
+        geom_type = int(mujoco.mjtObj.mjOBJ_GEOM)
+        for geom in scene.geoms[:ngeom]:
+            if geom.objtype == geom_type and geom.segid >= 0:
+                lookup[geom.segid + 1] = segment_of_geom[geom.objid]
+        codes = np.ndarray(
+            (self.height, self.width),
+            dtype="<u2",
+            buffer=self._segment_buffer,
+            strides=(3 * self.width, 3),
+        )
+        return lookup[codes[::-1]]
 
     def _abandon(self) -> None:
         # In a forked child: forget the parent's contexts without freeing them.

@@ -187,6 +187,34 @@ class SoArmPhysics(dm_mujoco.Physics):
             **{name: index.geoms for name, index in self._fixtures.items()},
         }
 
+    # --- segmentation ----------------------------------------------------------------
+    def segmentation_ids(self) -> dict[str, int]:
+        """Segment ids of segmentation images: ``"background"`` 0 (the floor and the sky),
+        ``"table"`` 1, ``"robot"`` 2, then each object and each fixture in declaration
+        order (objects first).
+        """
+        names = ("background", "table", "robot", *self._objects, *self._fixtures)
+        return {name: index for index, name in enumerate(names)}
+
+    def geom_segments(self) -> np.ndarray:
+        """int32 array: the segment id (:meth:`segmentation_ids`) of every geom of the model.
+
+        A fixture's parts are its own (a fixture attached to another keeps its own id).
+        """
+        m = self._mj_model
+        ids = self.segmentation_ids()
+        body_of_geom = np.asarray(m.geom_bodyid)
+        root_of_body = np.asarray(m.body_rootid)
+        segments = np.zeros(m.ngeom, dtype=np.int32)
+        body = mujoco.mjtObj.mjOBJ_BODY
+        table = mujoco.mj_name2id(m, body, constants.TABLE_BODY)
+        robot = mujoco.mj_name2id(m, body, constants.ROBOT_BASE_BODY)
+        segments[root_of_body[body_of_geom] == table] = ids["table"]
+        segments[root_of_body[body_of_geom] == robot] = ids["robot"]
+        for name in (*self._objects, *self._fixtures):
+            segments[body_of_geom == mujoco.mj_name2id(m, body, name)] = ids[name]
+        return segments
+
     # --- stepping --------------------------------------------------------------------
     def step(self, nstep: int = 1) -> None:
         """Advance the simulation by ``nstep`` physics steps.
