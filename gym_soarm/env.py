@@ -19,6 +19,7 @@ from gym_soarm import constants
 from gym_soarm.render.backend import RENDER_QUALITIES
 from gym_soarm.render.camera import CameraRenderer
 from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS, STS3215, Randomizer, Sts3215Servo
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.base import Task, TaskSpec
 from gym_soarm.units import UNITS, JointUnits, check_wrist_roll_offset, joint_units
@@ -112,6 +113,17 @@ class SoArmEnv(gym.Env):
         image_modalities: images of each camera in pixel observations: a tuple of
             ``"rgb"``, ``"depth"`` and ``"segmentation"`` (see above); only these are
             rendered.
+        visual_randomization: ``"none"``, ``"light"`` or ``"heavy"``: lights, table,
+            floor and object colours and the cameras drawn anew at every reset (see
+            :mod:`gym_soarm.sim.randomization`); the reset's ``info["variation"]`` says
+            what was drawn.
+        physics_randomization: ``"none"``, ``"light"`` or ``"heavy"``: object mass and
+            friction, servo gains and joint damping (+-10 % or +-30 %), and with
+            ``"heavy"`` a control delay of 0 or 1 steps, drawn at every reset.
+        servo_model: ``"ideal"`` (the servo targets are the actions) or ``"sts3215"``
+            (the follower's Feetech STS3215: speed-limited, quantised targets with
+            backlash and its stall torque as force range; see
+            :class:`gym_soarm.sim.randomization.Sts3215Servo`).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": constants.RENDER_FPS}
@@ -130,6 +142,9 @@ class SoArmEnv(gym.Env):
         units: str = "radians",
         wrist_roll_offset_deg: float = 0.0,
         image_modalities: Sequence[str] = ("rgb",),
+        visual_randomization: str = "none",
+        physics_randomization: str = "none",
+        servo_model: str = "ideal",
     ) -> None:
         # Validate every argument before building anything.
         spec = get_task(task)
@@ -144,6 +159,9 @@ class SoArmEnv(gym.Env):
         check_choice("units", units, UNITS)
         wrist_roll_offset_deg = check_wrist_roll_offset(units, wrist_roll_offset_deg)
         modalities = check_subset("image_modalities", image_modalities, IMAGE_MODALITIES)
+        check_choice("visual_randomization", visual_randomization, LEVELS)
+        check_choice("physics_randomization", physics_randomization, LEVELS)
+        check_choice("servo_model", servo_model, SERVO_MODELS)
 
         self.render_mode = render_mode
         self.obs_type = obs_type
@@ -161,6 +179,9 @@ class SoArmEnv(gym.Env):
         self._rgb = "rgb" in modalities
         self._depth = "depth" in modalities
         self._segmentation = "segmentation" in modalities
+        self.visual_randomization = visual_randomization
+        self.physics_randomization = physics_randomization
+        self.servo_model = servo_model
 
         # The render quality picks the visual meshes; the physics is the same for both.
         self._spec = spec
@@ -173,6 +194,24 @@ class SoArmEnv(gym.Env):
         }
         self._renderers: dict[tuple[int, int], CameraRenderer] = {}
         self._segment_of_geom = self._physics.geom_segments() if self._segmentation else None
+        self._servo: Sts3215Servo | None = None
+        if servo_model == "sts3215":
+            self._physics.set_servo_force_limit(STS3215.stall_torque_nm)
+            self._servo = Sts3215Servo(constants.CONTROL_TIMESTEP_S)
+        randomized = visual_randomization != "none" or physics_randomization != "none"
+        self._randomizer = Randomizer(self._physics) if randomized else None
+        self._report_variation = randomized or servo_model != "ideal"
+        self._variation: dict[str, Any] = {}
+        if self._report_variation:
+            self._variation = {
+                "visual_randomization": visual_randomization,
+                "visual": {},
+                "physics_randomization": physics_randomization,
+                "physics": {},
+                "servo_model": servo_model,
+            }
+        self._delay_steps = 0
+        self._pending_target: np.ndarray | None = None
         self._viewer = None
         self._closed = False
         self._needs_reset = True
@@ -365,19 +404,52 @@ class SoArmEnv(gym.Env):
         super().reset(seed=seed)
         with self._physics.reset_context():
             self._task.initialize_episode(self._physics, self.np_random, options)
+            if self._randomizer is not None:
+                # Drawn after the task's placement, so a seed places the objects the
+                # same way at every level; applied before the reset's forward pass.
+                self._randomize()
+        if self._delay_steps:
+            self._pending_target = self._physics.joint_targets().copy()
+        if self._servo is not None:
+            self._servo.reset(self._physics.joint_targets())
         self._needs_reset = False
         self._step_count = 0
         obs = self._observation()
         info = self._info()
+        if self._report_variation:
+            info["variation"] = copy.deepcopy(self._variation)
         if self._viewer is not None:
             self._viewer.show(info)
         return obs, info
+
+    def _randomize(self) -> None:
+        assert self._randomizer is not None
+        rng = self.np_random
+        visual = self._randomizer.visual(self.visual_randomization, rng)
+        physical, self._delay_steps = self._randomizer.physics(self.physics_randomization, rng)
+        self._variation = {
+            "visual_randomization": self.visual_randomization,
+            "visual": visual,
+            "physics_randomization": self.physics_randomization,
+            "physics": physical,
+            "servo_model": self.servo_model,
+        }
+
+    @property
+    def variation(self) -> dict[str, Any]:
+        """What the last reset drew (``info["variation"]``); empty without randomisation."""
+        return copy.deepcopy(self._variation)
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         self._check_open("step")
         target = self._validate_action(action)
         if self._needs_reset:
             raise RuntimeError(f"call reset() before step(): {self._no_episode_reason}.")
+        if self._delay_steps:
+            # The servos receive the previous step's action.
+            target, self._pending_target = self._pending_target, target
+        if self._servo is not None:
+            target = self._servo(target)
         self._task.before_step(target, self._physics)
         try:
             self._physics.step(constants.N_SUBSTEPS)

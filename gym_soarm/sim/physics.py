@@ -274,6 +274,12 @@ class SoArmPhysics(dm_mujoco.Physics):
         self._qpos[self._arm_qpos_adr] = angles
         self._qvel[self._arm_dof_adr] = 0.0
 
+    def set_servo_force_limit(self, torque_nm: float) -> None:
+        """Limit every servo's force to +-``torque_nm`` (N·m) on this model copy."""
+        m = self._mj_model
+        m.actuator_forcerange[self._actuator_ids] = (-torque_nm, torque_nm)
+        m.actuator_forcelimited[self._actuator_ids] = 1
+
     def control_range(self) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper servo target bounds in radians."""
         rng = self.model.ptr.actuator_ctrlrange[self._actuator_ids]
