@@ -22,11 +22,13 @@ from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS, STS3215, Randomizer, Sts3215Servo
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.base import Task, TaskSpec
+from gym_soarm.tasks.distractors import MAX_DISTRACTORS, place_distractors, with_distractors
 from gym_soarm.units import UNITS, JointUnits, check_wrist_roll_offset, joint_units
 from gym_soarm.validation import (
     ArgumentTypeError,
     check_choice,
     check_image_size,
+    check_int,
     check_subset,
     choices,
     resolve_camera_config,
@@ -34,6 +36,7 @@ from gym_soarm.validation import (
 
 OBS_TYPES = ("pixels", "pixels_agent_pos", "environment_state_agent_pos")
 REWARD_TYPES = ("dense", "sparse")
+PLACEMENTS = ("grid", "uniform")
 IMAGE_MODALITIES = ("rgb", "depth", "segmentation")
 # LeRobot's evaluation (lerobot >= 0.6) marks the start of every rollout with this reset
 # option; it is accepted and has no effect.
@@ -145,6 +148,8 @@ class SoArmEnv(gym.Env):
         visual_randomization: str = "none",
         physics_randomization: str = "none",
         servo_model: str = "ideal",
+        object_placement: str | None = None,
+        distractors: int = 0,
     ) -> None:
         # Validate every argument before building anything.
         spec = get_task(task)
@@ -162,6 +167,9 @@ class SoArmEnv(gym.Env):
         check_choice("visual_randomization", visual_randomization, LEVELS)
         check_choice("physics_randomization", physics_randomization, LEVELS)
         check_choice("servo_model", servo_model, SERVO_MODELS)
+        check_choice("object_placement", object_placement, PLACEMENTS, none_ok=True)
+        distractors = check_int("distractors", distractors, 0, MAX_DISTRACTORS)
+        task_logic: Task = spec.make_task(object_placement)  # refuses an unsupported placement
 
         self.render_mode = render_mode
         self.obs_type = obs_type
@@ -182,11 +190,16 @@ class SoArmEnv(gym.Env):
         self.visual_randomization = visual_randomization
         self.physics_randomization = physics_randomization
         self.servo_model = servo_model
+        self.object_placement = task_logic.placement
+        self.distractors = distractors
 
         # The render quality picks the visual meshes; the physics is the same for both.
         self._spec = spec
-        self._physics = SoArmPhysics.from_scene(spec.scene, render_quality, spec.name)
-        self._task: Task = spec.make_task()
+        scene, label = spec.scene, spec.name
+        if distractors:
+            scene, label = with_distractors(scene, distractors), f"{spec.name}+{distractors}d"
+        self._physics = SoArmPhysics.from_scene(scene, render_quality, label)
+        self._task = task_logic
         self.task = spec.name
         self._options: dict[str, Any] = {}
         self._camera_ids = {
@@ -200,7 +213,12 @@ class SoArmEnv(gym.Env):
             self._servo = Sts3215Servo(constants.CONTROL_TIMESTEP_S)
         randomized = visual_randomization != "none" or physics_randomization != "none"
         self._randomizer = Randomizer(self._physics) if randomized else None
-        self._report_variation = randomized or servo_model != "ideal"
+        self._report_variation = (
+            randomized
+            or servo_model != "ideal"
+            or distractors > 0
+            or self.object_placement != spec.default_placement
+        )
         self._variation: dict[str, Any] = {}
         if self._report_variation:
             self._variation = {
@@ -209,6 +227,8 @@ class SoArmEnv(gym.Env):
                 "physics_randomization": physics_randomization,
                 "physics": {},
                 "servo_model": servo_model,
+                "object_placement": self.object_placement,
+                "distractors": [],
             }
         self._delay_steps = 0
         self._pending_target: np.ndarray | None = None
@@ -404,6 +424,9 @@ class SoArmEnv(gym.Env):
         super().reset(seed=seed)
         with self._physics.reset_context():
             self._task.initialize_episode(self._physics, self.np_random, options)
+            placed = place_distractors(self._physics, self.distractors, self.np_random)
+            if self._report_variation:
+                self._variation["distractors"] = placed
             if self._randomizer is not None:
                 # Drawn after the task's placement, so a seed places the objects the
                 # same way at every level; applied before the reset's forward pass.
@@ -427,13 +450,13 @@ class SoArmEnv(gym.Env):
         rng = self.np_random
         visual = self._randomizer.visual(self.visual_randomization, rng)
         physical, self._delay_steps = self._randomizer.physics(self.physics_randomization, rng)
-        self._variation = {
-            "visual_randomization": self.visual_randomization,
-            "visual": visual,
-            "physics_randomization": self.physics_randomization,
-            "physics": physical,
-            "servo_model": self.servo_model,
-        }
+        self._variation.update(
+            visual_randomization=self.visual_randomization,
+            visual=visual,
+            physics_randomization=self.physics_randomization,
+            physics=physical,
+            servo_model=self.servo_model,
+        )
 
     @property
     def variation(self) -> dict[str, Any]:

@@ -79,16 +79,18 @@ class EpisodeResult:
     steps: int
 
 
-def evaluation_resets(task: str, seeds: int | None = None) -> list[tuple[int, dict | None]]:
+def evaluation_resets(
+    task: str, seeds: int | None = None, object_placement: str | None = None
+) -> list[tuple[int, dict | None]]:
     """The (seed, options) of the episodes ``task``'s expert is measured on.
 
     Grid tasks sweep every cell and seed yaw for ``seeds`` seeds (default 3); the others
     reset with seeds 0 .. ``seeds``-1 (default 100).
     """
     spec = get_task(task)
-    logic = spec.make_task()
+    logic = spec.make_task(object_placement)
     if seeds is None:
-        seeds = EVALUATION_SEEDS if spec.default_placement == "grid" else EVALUATION_EPISODES
+        seeds = EVALUATION_SEEDS if logic.placement == "grid" else EVALUATION_EPISODES
     return logic.evaluation_resets(seeds)
 
 
@@ -117,7 +119,9 @@ def evaluate(task: str, seeds: int | None = None, **env_kwargs: Any) -> list[Epi
         expert = make_expert(env)
         return [
             run_episode(env, expert, seed, options)
-            for seed, options in evaluation_resets(spec.name, seeds)
+            for seed, options in evaluation_resets(
+                spec.name, seeds, env_kwargs.get("object_placement")
+            )
         ]
     finally:
         env.close()

@@ -235,3 +235,26 @@ def test_env_config_takes_a_task_defined_outside_the_library():
         assert vector.call("state_layout")[0] == (("block_pos", 3), ("block_yaw", 1))
     finally:
         vector.close()
+
+
+def test_env_config_forwards_the_variation_keywords():
+    config = SoArmEnvConfig(
+        task="StackCube-v0",
+        obs_type="environment_state_agent_pos",
+        visual_randomization="light",
+        physics_randomization="light",
+        servo_model="sts3215",
+        distractors=2,
+    )
+    kwargs = config.gym_kwargs
+    assert kwargs["distractors"] == 2 and kwargs["servo_model"] == "sts3215"
+    vector = make_env(config, n_envs=1)["soarm"][0]
+    try:
+        _, info = vector.reset(seed=0)
+        assert vector.call("distractors")[0] == 2
+    finally:
+        vector.close()
+    with pytest.raises(ValueError, match="distractors"):
+        SoArmEnvConfig(distractors=9)
+    with pytest.raises(ValueError, match="object_placement"):
+        SoArmEnvConfig(task="StackCube-v0", object_placement="grid")

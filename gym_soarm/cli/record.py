@@ -18,6 +18,7 @@ from gym_soarm.data.record import (
     default_root,
     record,
 )
+from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
 from gym_soarm.tasks import task_names, task_spellings
 from gym_soarm.units import UNITS
 from gym_soarm.validation import parse_size
@@ -82,6 +83,21 @@ def build_parser() -> argparse.ArgumentParser:
         "--overwrite", action="store_true", help="replace an existing dataset in --root"
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    variation = parser.add_argument_group(
+        "variation", "vary the scene at every reset (see the README's Variation section)"
+    )
+    variation.add_argument("--visual-randomization", choices=LEVELS, default="none")
+    variation.add_argument("--physics-randomization", choices=LEVELS, default="none")
+    variation.add_argument("--servo-model", choices=SERVO_MODELS, default="ideal")
+    variation.add_argument(
+        "--object-placement",
+        choices=("grid", "uniform"),
+        default=None,
+        help="grid or uniform (default: the task's)",
+    )
+    variation.add_argument(
+        "--distractors", type=int, default=0, help="extra objects on the table, 0-4 (default 0)"
+    )
     return parser
 
 
@@ -108,6 +124,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             dart_noise=args.dart_noise,
             overwrite=args.overwrite,
             progress=not args.no_progress,
+            variation={
+                "visual_randomization": args.visual_randomization,
+                "physics_randomization": args.physics_randomization,
+                "servo_model": args.servo_model,
+                "object_placement": args.object_placement,
+                "distractors": args.distractors,
+            },
         )
     except (ValueError, TypeError, FileExistsError) as exc:
         parser.error(str(exc))

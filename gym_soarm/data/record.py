@@ -26,10 +26,11 @@ converted to the recording's units with :mod:`gym_soarm.units`.
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +46,14 @@ from gym_soarm.validation import check_int, parse_size, resolve_camera_config
 CAMERA_CONFIG_NONE = "none"
 CAMERA_CONFIG_CHOICES: tuple[str, ...] = (*constants.CAMERA_CONFIGS, CAMERA_CONFIG_NONE)
 KEEP_CHOICES: tuple[str, ...] = ("success", "all")
+VARIATION_KEYWORDS: tuple[str, ...] = (
+    "visual_randomization",
+    "physics_randomization",
+    "servo_model",
+    "object_placement",
+    "distractors",
+)
+VARIATION_PATH = "meta/variation.jsonl"
 FPS = constants.RENDER_FPS
 
 
@@ -146,6 +155,7 @@ def record(
     overwrite: bool = False,
     max_attempts: int | None = None,
     progress: bool = False,
+    variation: Mapping[str, Any] | None = None,
 ) -> RecordSummary:
     """Record ``episodes`` episodes of the scripted expert into a dataset folder.
 
@@ -171,6 +181,10 @@ def record(
         overwrite: replace an existing dataset in ``root``.
         max_attempts: give up after this many attempts (default ``3 * episodes + 10``).
         progress: show a progress bar on stderr.
+        variation: keywords of ``gym.make`` that vary the scene: ``visual_randomization``,
+            ``physics_randomization``, ``servo_model``, ``object_placement``,
+            ``distractors``. What each kept episode's reset drew (``info["variation"]``)
+            is written to ``meta/variation.jsonl``, one line per episode.
 
     Raises:
         ValueError: a bad argument; nothing is written then.
@@ -195,7 +209,14 @@ def record(
         max_attempts = 3 * episodes + 10
     max_attempts = check_int("max_attempts", max_attempts, episodes)
 
+    variation = dict(variation or {})
+    unknown = sorted(set(variation) - set(VARIATION_KEYWORDS))
+    if unknown:
+        raise ValueError(
+            f"variation takes the keywords {', '.join(VARIATION_KEYWORDS)}; got {unknown}."
+        )
     env_kwargs: dict[str, Any] = {
+        **variation,
         "units": units,
         "wrist_roll_offset_deg": wrist_roll_offset_deg,
     }
@@ -234,6 +255,7 @@ def record(
         while kept < episodes and attempts < max_attempts:
             noise = np.random.default_rng([seed, attempts])
             obs, info = env.reset(seed=seed + attempts)
+            drawn = info.get("variation")
             expert.reset()
             attempts += 1
             done = False
@@ -265,7 +287,11 @@ def record(
             success = bool(info["is_success"])
             successes += success
             if success or keep == "all":
-                writer.save_episode()
+                index = writer.save_episode()
+                if drawn is not None:
+                    line = {"episode_index": index, "seed": seed + attempts - 1, **drawn}
+                    with open(Path(root) / VARIATION_PATH, "a", encoding="utf-8") as out:
+                        out.write(json.dumps(line) + "\n")
                 kept += 1
                 if bar is not None:
                     bar.update(1)

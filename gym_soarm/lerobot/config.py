@@ -10,9 +10,11 @@ from lerobot.envs.configs import EnvConfig
 
 import gym_soarm  # noqa: F401  (registers gym_soarm/<task> wherever this config is unpickled)
 from gym_soarm import constants
+from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
 from gym_soarm.tasks import get_task
+from gym_soarm.tasks.distractors import MAX_DISTRACTORS
 from gym_soarm.units import UNITS, check_wrist_roll_offset
-from gym_soarm.validation import parse_cameras
+from gym_soarm.validation import check_choice, check_int, parse_cameras
 
 ACTION = "action"
 OBS_STATE = "observation.state"
@@ -52,6 +54,11 @@ class SoArmEnvConfig(EnvConfig):
             ``"lerobot_range"`` or ``"radians"``.
         wrist_roll_offset_deg: with LeRobot units, the real arm's wrist_roll reading
             when the model's wrist_roll is at 0 rad (see :mod:`gym_soarm.units`).
+        visual_randomization: ``"none"``, ``"light"`` or ``"heavy"``.
+        physics_randomization: ``"none"``, ``"light"`` or ``"heavy"``.
+        servo_model: ``"ideal"`` or ``"sts3215"``.
+        object_placement: ``"grid"`` or ``"uniform"``; None for the task's default.
+        distractors: extra objects on the table, 0 to 4.
     """
 
     task: str | None = "PickAndPlaceCube-v0"
@@ -65,6 +72,11 @@ class SoArmEnvConfig(EnvConfig):
     render_camera: str = constants.DEFAULT_RENDER_CAMERA
     units: str = "lerobot"
     wrist_roll_offset_deg: float = 0.0
+    visual_randomization: str = "none"
+    physics_randomization: str = "none"
+    servo_model: str = "ideal"
+    object_placement: str | None = None
+    distractors: int = 0
     features: dict[str, PolicyFeature] = field(default_factory=dict)
     features_map: dict[str, str] = field(default_factory=dict)
 
@@ -77,6 +89,12 @@ class SoArmEnvConfig(EnvConfig):
         if self.units not in UNITS:
             raise ValueError(f"units must be one of {', '.join(UNITS)}; got {self.units!r}.")
         self.wrist_roll_offset_deg = check_wrist_roll_offset(self.units, self.wrist_roll_offset_deg)
+        check_choice("visual_randomization", self.visual_randomization, LEVELS)
+        check_choice("physics_randomization", self.physics_randomization, LEVELS)
+        check_choice("servo_model", self.servo_model, SERVO_MODELS)
+        check_choice("object_placement", self.object_placement, ("grid", "uniform"), none_ok=True)
+        get_task(self.task).make_task(self.object_placement)  # refuses an unsupported placement
+        self.distractors = check_int("distractors", self.distractors, 0, MAX_DISTRACTORS)
         cameras = parse_cameras(self.camera_config)
         n_joints = len(constants.JOINT_NAMES)
         features: dict[str, PolicyFeature] = {
@@ -87,7 +105,7 @@ class SoArmEnvConfig(EnvConfig):
             features["agent_pos"] = PolicyFeature(type=FeatureType.STATE, shape=(n_joints,))
             features_map["agent_pos"] = OBS_STATE
         if self.obs_type == "environment_state_agent_pos":
-            layout = get_task(self.task).make_task().state_layout
+            layout = get_task(self.task).make_task(self.object_placement).state_layout
             features["environment_state"] = PolicyFeature(
                 type=FeatureType.ENV, shape=(sum(size for _, size in layout),)
             )
@@ -117,6 +135,11 @@ class SoArmEnvConfig(EnvConfig):
             "render_camera": self.render_camera,
             "units": self.units,
             "wrist_roll_offset_deg": self.wrist_roll_offset_deg,
+            "visual_randomization": self.visual_randomization,
+            "physics_randomization": self.physics_randomization,
+            "servo_model": self.servo_model,
+            "object_placement": self.object_placement,
+            "distractors": self.distractors,
         }
         if self.episode_length is not None:
             kwargs["max_episode_steps"] = self.episode_length

@@ -114,10 +114,24 @@ class Task:
     weights: ClassVar[RewardWeights]
     state_fields: ClassVar[tuple[StateField, ...]]
     option_keys: ClassVar[tuple[str, ...]] = ()
+    placements: ClassVar[tuple[str, ...]] = ("uniform",)
+    """The ``object_placement`` values the task supports: ``"grid"`` and/or ``"uniform"``."""
 
     def __init__(self, spec: TaskSpec) -> None:
         self.spec = spec
         self.instruction = spec.instructions[0]
+        self.placement = spec.default_placement
+
+    def set_placement(self, placement: str | None) -> None:
+        """Choose how objects start (``None``: the task's default); ValueError if unsupported."""
+        placement = self.spec.default_placement if placement is None else placement
+        if placement not in self.placements:
+            raise ValueError(
+                f"object_placement must be one of {', '.join(map(repr, self.placements))} for "
+                f"{self.spec.name}; got {placement!r}. Leave it unset for the task's default "
+                f"({self.spec.default_placement!r})."
+            )
+        self.placement = placement
 
     # --- layout ------------------------------------------------------------------------
     @property
@@ -247,6 +261,8 @@ class TaskSpec:
         """Every gym id of the task: ``gym_soarm/<name>`` first."""
         return (self.env_id, *self.extra_env_ids)
 
-    def make_task(self) -> Task:
-        """A new instance of the task's episode logic."""
-        return self.task(self)
+    def make_task(self, placement: str | None = None) -> Task:
+        """A new instance of the task's episode logic (``placement``: None for the default)."""
+        task = self.task(self)
+        task.set_placement(placement)
+        return task

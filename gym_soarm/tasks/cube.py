@@ -82,11 +82,24 @@ def grid_evaluation_resets(seeds: Sequence[int]) -> list[tuple[int, dict[str, An
     ]
 
 
+UNIFORM_REGION_M: tuple[tuple[float, float], tuple[float, float]] = (
+    (
+        placement.GRID_CENTER_M[0] + placement.GRID_DX_M[0],
+        placement.GRID_CENTER_M[0] + placement.GRID_DX_M[-1],
+    ),
+    (
+        placement.GRID_CENTER_M[1] + placement.GRID_DY_M[0],
+        placement.GRID_CENTER_M[1] + placement.GRID_DY_M[-1],
+    ),
+)
+"""``object_placement="uniform"``: the cube's centre anywhere in the grid's bounding box."""
+
+
 @dataclasses.dataclass(frozen=True)
 class GridStart:
-    """Where the cube started: its grid cell and its yaw in degrees."""
+    """Where the cube started: its grid cell (None when placed anywhere) and its yaw."""
 
-    grid_cell: int
+    grid_cell: int | None
     yaw_deg: float
 
 
@@ -94,6 +107,7 @@ class CubeGridTask(Task):
     """A task with one cube that starts on a grid cell (base of lift and pick-and-place)."""
 
     option_keys: ClassVar[tuple[str, ...]] = GRID_OPTION_KEYS
+    placements: ClassVar[tuple[str, ...]] = ("grid", "uniform")
     cube = CUBE.name
 
     def __init__(self, spec) -> None:
@@ -101,16 +115,32 @@ class CubeGridTask(Task):
         self.start: GridStart | None = None
 
     def validate_options(self, options: Mapping[str, Any]) -> dict[str, Any]:
-        return validate_grid_options(options)
+        checked = validate_grid_options(options)
+        if self.placement == "uniform" and checked["cube_grid_position"] is not None:
+            raise ValueError(
+                "cube_grid_position applies to object_placement='grid'; this environment "
+                f"places the cube anywhere (object_placement='uniform'); got "
+                f"{checked['cube_grid_position']!r}. Remove the option or make the environment "
+                "with object_placement='grid'."
+            )
+        return checked
 
     def initialize_episode(
         self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
     ) -> None:
-        cell, yaw = placement.draw_grid_start(
-            rng, options.get("cube_grid_position"), options.get("cube_rotation_deg")
-        )
         physics.reset_to_home()
-        x, y = placement.grid_cell_position(cell)
+        if self.placement == "uniform":
+            # Anywhere in the grid's bounding box, any yaw in [0, 90) unless asked for.
+            (x0, x1), (y0, y1) = UNIFORM_REGION_M
+            x, y = float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1))
+            yaw = options.get("cube_rotation_deg")
+            yaw = float(rng.uniform(0.0, 90.0)) if yaw is None else yaw
+            cell = None
+        else:
+            cell, yaw = placement.draw_grid_start(
+                rng, options.get("cube_grid_position"), options.get("cube_rotation_deg")
+            )
+            x, y = placement.grid_cell_position(cell)
         physics.set_object_pose(
             self.cube,
             np.array([x, y, constants.TABLE_TOP_Z_M + CUBE_HALF_M]),
@@ -127,7 +157,9 @@ class CubeGridTask(Task):
         }
 
     def evaluation_resets(self, seeds: int) -> list[tuple[int, dict[str, Any] | None]]:
-        """The grid sweep: 9 cells x 4 yaws x ``seeds`` seeds (seeds 0 .. seeds-1)."""
+        """The grid sweep: 9 cells x 4 yaws x ``seeds`` seeds; seeds 0 .. seeds-1 if uniform."""
+        if self.placement == "uniform":
+            return super().evaluation_resets(seeds)
         return grid_evaluation_resets(range(seeds))
 
     # --- shared reward pieces --------------------------------------------------------

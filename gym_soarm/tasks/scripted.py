@@ -158,11 +158,11 @@ class ScriptedExpert:
 
         Experts of scenes with several objects override this.
         """
-        names = self.env.physics.object_names
+        names = [item.name for item in self.env.task_spec.scene.objects]  # not distractors
         if len(names) != 1:
             raise NotImplementedError(
                 f"{type(self).__name__} must name the object to grasp (override grasp_object); "
-                f"this scene has the objects {list(names)}."
+                f"this task has the objects {names}."
             )
         return names[0]
 
