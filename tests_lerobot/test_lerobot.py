@@ -250,7 +250,8 @@ def test_env_config_forwards_the_variation_keywords():
     assert kwargs["distractors"] == 2 and kwargs["servo_model"] == "sts3215"
     vector = make_env(config, n_envs=1)["soarm"][0]
     try:
-        _, info = vector.reset(seed=0)
+        obs, _ = vector.reset(seed=0)
+        assert obs["environment_state"].shape[0] == 1
         assert vector.call("distractors")[0] == 2
     finally:
         vector.close()
