@@ -16,6 +16,7 @@ from gym_soarm.tasks.base import TaskSpec
 from gym_soarm.validation import ArgumentTypeError
 
 ENTRY_POINT = "gym_soarm.env:SoArmEnv"
+VECTOR_ENTRY_POINT = "gym_soarm.vector:SoArmVectorEnv"
 
 _TASKS: dict[str, TaskSpec] = {}
 _SPELLINGS: dict[str, str] = {}  # name, alias or env id -> name
@@ -67,6 +68,7 @@ def register_task(spec: TaskSpec) -> TaskSpec:
             register(
                 id=env_id,
                 entry_point=ENTRY_POINT,
+                vector_entry_point=VECTOR_ENTRY_POINT,
                 max_episode_steps=spec.max_episode_steps,
                 kwargs={"task": spec.name},
             )
