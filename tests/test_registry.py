@@ -153,6 +153,14 @@ def test_the_recorder_records_the_new_task_with_its_layout(tmp_path):
     assert [row["task"] for row in tasks] == ["Lift the yellow block 3 cm."]
 
 
+def test_recorder_workers_register_the_new_task_themselves(tmp_path):
+    # The workers start without the parent's registrations; the spec travels to them.
+    summary = record(
+        tmp_path / "ds", task="LiftBlock-v0", episodes=2, camera_config="none", workers=2
+    )
+    assert summary.episodes == 2 and summary.successes == 2
+
+
 def test_the_record_command_line_accepts_the_new_task(tmp_path, capsys):
     from gym_soarm.cli.record import main
 

@@ -82,6 +82,22 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--overwrite", action="store_true", help="replace an existing dataset in --root"
     )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        metavar="N",
+        help="record attempts in N worker processes; the dataset is the same for any N (default 1)",
+    )
+    parser.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        default=None,
+        metavar="ADDRESS",
+        help="run the attempts as Ray tasks on the cluster at ADDRESS ('auto': the running "
+        "one), or on a new local cluster without ADDRESS; needs pip install 'gym-soarm[ray]'",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     variation = parser.add_argument_group(
         "variation", "vary the scene at every reset (see the README's Variation section)"
@@ -124,6 +140,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             dart_noise=args.dart_noise,
             overwrite=args.overwrite,
             progress=not args.no_progress,
+            workers=args.workers,
+            ray_address=args.ray,
             variation={
                 "visual_randomization": args.visual_randomization,
                 "physics_randomization": args.physics_randomization,
@@ -132,7 +150,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "distractors": args.distractors,
             },
         )
-    except (ValueError, TypeError, FileExistsError) as exc:
+    except (ValueError, TypeError, FileExistsError, ImportError) as exc:
         parser.error(str(exc))
     print(summary.text())
     if summary.interrupted:

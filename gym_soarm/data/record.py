@@ -40,12 +40,14 @@ import numpy as np
 from gym_soarm import constants
 from gym_soarm.data import LeRobotDatasetWriter
 from gym_soarm.tasks import get_task
+from gym_soarm.tasks.base import TaskSpec
 from gym_soarm.units import FEATURE_NAMES, joint_units
 from gym_soarm.validation import check_int, parse_size, resolve_camera_config
 
 CAMERA_CONFIG_NONE = "none"
 CAMERA_CONFIG_CHOICES: tuple[str, ...] = (*constants.CAMERA_CONFIGS, CAMERA_CONFIG_NONE)
 KEEP_CHOICES: tuple[str, ...] = ("success", "all")
+START_METHODS: tuple[str, ...] = ("forkserver", "spawn")
 VARIATION_KEYWORDS: tuple[str, ...] = (
     "visual_randomization",
     "physics_randomization",
@@ -141,6 +143,74 @@ def dataset_features(
     return features
 
 
+@dataclasses.dataclass(frozen=True)
+class AttemptPlan:
+    """Everything an attempt needs besides its index (picklable, for worker processes)."""
+
+    spec: TaskSpec
+    env_kwargs: dict[str, Any]
+    features: dict[str, dict[str, Any]]
+    robot_type: str
+    seed: int
+    dart_noise: float
+    keep: str
+    units: str
+    wrist_roll_offset_deg: float
+    cameras: tuple[str, ...]
+    state_only: bool
+
+
+def record_attempt(
+    env: gym.Env, expert: Any, writer: LeRobotDatasetWriter, plan: AttemptPlan, attempt: int
+) -> tuple[bool, dict[str, Any] | None]:
+    """Play attempt ``attempt`` (reset with ``plan.seed + attempt``) into ``writer``'s buffer.
+
+    Returns:
+        Whether the expert succeeded, and what the reset drew (``info["variation"]``, or
+        None). The frames stay in the writer's episode buffer: the caller saves, exports
+        or clears them.
+    """
+    conversion = joint_units(plan.units, plan.wrist_roll_offset_deg)
+    noise = np.random.default_rng([plan.seed, attempt])
+    obs, info = env.reset(seed=plan.seed + attempt)
+    drawn = info.get("variation")
+    expert.reset()
+    done = False
+    while not done:
+        action_rad = expert.next_targets_radians()  # radians, whatever the units
+        executed_rad = action_rad
+        if plan.dart_noise > 0:
+            executed_rad = action_rad + noise.normal(0.0, plan.dart_noise, action_rad.shape)
+        frame: dict[str, Any] = {
+            "observation.state": obs["agent_pos"].astype(np.float32),
+            "action": conversion.from_radians(action_rad).astype(np.float32),
+            "task": env.unwrapped.task_description,
+        }
+        if plan.state_only:
+            frame["observation.environment_state"] = obs["environment_state"].astype(np.float32)
+        else:
+            for camera in plan.cameras:
+                frame[f"observation.images.{camera}"] = obs["pixels"][camera]
+        obs, reward, terminated, truncated, info = env.step(conversion.from_radians(executed_rad))
+        done = terminated or truncated
+        frame["next.reward"] = np.array([reward], np.float32)
+        frame["next.success"] = np.array([info["is_success"]])
+        frame["next.done"] = np.array([done])
+        writer.add_frame(frame)
+    return bool(info["is_success"]), drawn
+
+
+def write_variation(
+    root: str | os.PathLike[str], episode_index: int, seed: int, drawn: Mapping[str, Any] | None
+) -> None:
+    """Append a kept episode's drawn variation to ``meta/variation.jsonl`` (if any)."""
+    if drawn is None:
+        return
+    line = {"episode_index": episode_index, "seed": seed, **drawn}
+    with open(Path(root) / VARIATION_PATH, "a", encoding="utf-8") as out:
+        out.write(json.dumps(line) + "\n")
+
+
 def record(
     root: str | os.PathLike[str],
     task: str = "LiftCube-v0",
@@ -155,6 +225,9 @@ def record(
     overwrite: bool = False,
     max_attempts: int | None = None,
     progress: bool = False,
+    workers: int = 1,
+    start_method: str | None = None,
+    ray_address: str | None = None,
     variation: Mapping[str, Any] | None = None,
 ) -> RecordSummary:
     """Record ``episodes`` episodes of the scripted expert into a dataset folder.
@@ -181,6 +254,17 @@ def record(
         overwrite: replace an existing dataset in ``root``.
         max_attempts: give up after this many attempts (default ``3 * episodes + 10``).
         progress: show a progress bar on stderr.
+        workers: record the attempts in this many worker processes (each writes its
+            episodes to a shard; this process merges them in attempt order). The
+            dataset is the same, frame for frame, for every worker count; a worker
+            that dies mid-episode costs a retry of that attempt.
+        start_method: how workers start: ``"forkserver"`` (default where available) or
+            ``"spawn"``.
+        ray_address: run the attempts as Ray tasks instead (``pip install
+            "gym-soarm[ray]"``): a cluster address (``"auto"``, ``"host:6379"``,
+            ``"ray://host:10001"``) or ``"local"`` for a local cluster; ``workers`` > 1
+            then caps the tasks in flight (default: the cluster's CPUs). The dataset is
+            the same as with one process.
         variation: keywords of ``gym.make`` that vary the scene: ``visual_randomization``,
             ``physics_randomization``, ``servo_model``, ``object_placement``,
             ``distractors``. What each kept episode's reset drew (``info["variation"]``)
@@ -195,7 +279,7 @@ def record(
     spec = get_task(task)
     episodes = check_int("episodes", episodes, 1)
     seed = check_int("seed", seed, 0)
-    conversion = joint_units(units, wrist_roll_offset_deg)
+    joint_units(units, wrist_roll_offset_deg)  # checks units and the offset
     if keep not in KEEP_CHOICES:
         raise ValueError(f"keep must be one of {', '.join(KEEP_CHOICES)}; got {keep!r}.")
     if isinstance(dart_noise, bool) or not isinstance(dart_noise, (int, float)):
@@ -208,6 +292,16 @@ def record(
     if max_attempts is None:
         max_attempts = 3 * episodes + 10
     max_attempts = check_int("max_attempts", max_attempts, episodes)
+    workers = check_int("workers", workers, 1)
+    if ray_address is not None and (not isinstance(ray_address, str) or not ray_address):
+        raise ValueError(
+            f"ray_address must be a Ray cluster address such as 'auto' or 'host:6379', or "
+            f"'local'; got {ray_address!r}."
+        )
+    if start_method is not None and start_method not in START_METHODS:
+        raise ValueError(
+            f"start_method must be one of {', '.join(START_METHODS)} or None; got {start_method!r}."
+        )
 
     variation = dict(variation or {})
     unknown = sorted(set(variation) - set(VARIATION_KEYWORDS))
@@ -233,74 +327,76 @@ def record(
     env = gym.make(spec.env_id, **env_kwargs)
     try:
         state_names = env.unwrapped.state_names if state_only else None
+        features = dataset_features(cameras, height, width, environment_state=state_names)
+        robot_type = "gym_soarm" if units == "radians" else "so101_follower"
         writer = LeRobotDatasetWriter.create(
-            root,
-            FPS,
-            dataset_features(cameras, height, width, environment_state=state_names),
-            robot_type="gym_soarm" if units == "radians" else "so101_follower",
-            overwrite=overwrite,
+            root, FPS, features, robot_type=robot_type, overwrite=overwrite
         )
     except BaseException:
         env.close()
         raise
+    plan = AttemptPlan(
+        spec=spec,
+        env_kwargs=env_kwargs,
+        features=features,
+        robot_type=robot_type,
+        seed=seed,
+        dart_noise=float(dart_noise),
+        keep=keep,
+        units=units,
+        wrist_roll_offset_deg=wrist_roll_offset_deg,
+        cameras=tuple(cameras),
+        state_only=state_only,
+    )
     kept = attempts = successes = 0
     interrupted = False
     bar = None
     try:
-        expert = make_expert(env)
         if progress:
             from tqdm import tqdm
 
             bar = tqdm(total=episodes, unit="episode", file=sys.stderr, dynamic_ncols=True)
-        while kept < episodes and attempts < max_attempts:
-            noise = np.random.default_rng([seed, attempts])
-            obs, info = env.reset(seed=seed + attempts)
-            drawn = info.get("variation")
-            expert.reset()
-            attempts += 1
-            done = False
-            while not done:
-                action_rad = expert.next_targets_radians()  # radians, whatever the units
-                executed_rad = action_rad
-                if dart_noise > 0:
-                    executed_rad = action_rad + noise.normal(0.0, dart_noise, action_rad.shape)
-                frame: dict[str, Any] = {
-                    "observation.state": obs["agent_pos"].astype(np.float32),
-                    "action": conversion.from_radians(action_rad).astype(np.float32),
-                    "task": env.unwrapped.task_description,
-                }
-                if state_only:
-                    frame["observation.environment_state"] = obs["environment_state"].astype(
-                        np.float32
-                    )
-                else:
-                    for camera in cameras:
-                        frame[f"observation.images.{camera}"] = obs["pixels"][camera]
-                obs, reward, terminated, truncated, info = env.step(
-                    conversion.from_radians(executed_rad)
-                )
-                done = terminated or truncated
-                frame["next.reward"] = np.array([reward], np.float32)
-                frame["next.success"] = np.array([info["is_success"]])
-                frame["next.done"] = np.array([done])
-                writer.add_frame(frame)
-            success = bool(info["is_success"])
-            successes += success
-            if success or keep == "all":
-                index = writer.save_episode()
-                if drawn is not None:
-                    line = {"episode_index": index, "seed": seed + attempts - 1, **drawn}
-                    with open(Path(root) / VARIATION_PATH, "a", encoding="utf-8") as out:
-                        out.write(json.dumps(line) + "\n")
-                kept += 1
-                if bar is not None:
-                    bar.update(1)
-            else:
-                writer.clear_episode_buffer()
-            if bar is not None:
-                bar.set_postfix(success=f"{successes}/{attempts}", frames=writer.num_frames)
-    except KeyboardInterrupt:
-        interrupted = True
+        if ray_address is not None:
+            env.close()
+            from gym_soarm.data.ray_tasks import record_with_ray
+
+            outcome = record_with_ray(
+                writer,
+                plan,
+                episodes,
+                max_attempts,
+                ray_address,
+                parallel=workers if workers > 1 else None,
+                bar=bar,
+            )
+            attempts, successes, interrupted = outcome
+        elif workers > 1:
+            env.close()
+            from gym_soarm.data.parallel import record_in_workers
+
+            outcome = record_in_workers(
+                writer, plan, episodes, max_attempts, workers, start_method, bar
+            )
+            attempts, successes, interrupted = outcome
+        else:
+            expert = make_expert(env)
+            try:
+                while kept < episodes and attempts < max_attempts:
+                    success, drawn = record_attempt(env, expert, writer, plan, attempts)
+                    attempts += 1
+                    successes += success
+                    if success or keep == "all":
+                        index = writer.save_episode()
+                        write_variation(root, index, seed + attempts - 1, drawn)
+                        kept += 1
+                        if bar is not None:
+                            bar.update(1)
+                    else:
+                        writer.clear_episode_buffer()
+                    if bar is not None:
+                        bar.set_postfix(success=f"{successes}/{attempts}", frames=writer.num_frames)
+            except KeyboardInterrupt:
+                interrupted = True
     finally:
         if bar is not None:
             bar.close()

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import json
 import os
+import pickle
 import shutil
 import warnings
 from collections.abc import Mapping
@@ -73,6 +74,8 @@ from gym_soarm.data.video_files import (
     SegmentEncoder,
     concatenate_videos,
 )
+
+_SHARD_FILE = "episode.pkl"
 
 
 # --- the writer ------------------------------------------------------------------------------
@@ -385,6 +388,90 @@ class LeRobotDatasetWriter:
             self._write_metadata()
             self._reset_buffer()
         return episode_index
+
+    def export_episode(self, folder: str | os.PathLike[str]) -> int:
+        """Move the episode being recorded into ``folder`` (a shard) instead of the dataset.
+
+        The shard holds the episode's numbers, task sentences, image histograms and one
+        encoded H.264 segment per camera; :meth:`import_episode` of another writer with
+        the same features saves it exactly as :meth:`save_episode` would have. The
+        folder appears at once, complete (it is written next to it and renamed).
+
+        Returns:
+            The number of frames exported.
+
+        Raises:
+            ValueError: no frame was added since the last save.
+            RuntimeError: the dataset was finalized.
+        """
+        self._check_open()
+        length = self.episode_buffer_size
+        if length == 0:
+            raise ValueError("no frames were added to this episode; call add_frame() first.")
+        self._close_encoders()
+        folder = Path(folder)
+        partial = folder.with_name(folder.name + ".partial")
+        for stale in (partial, folder):
+            shutil.rmtree(stale, ignore_errors=True)
+        partial.mkdir(parents=True)
+        content = {
+            "features": sorted(self.features),
+            "numeric": {key: np.stack(self._buffer[key]) for key in self._numeric_keys},
+            "histograms": self._buffer_histograms,
+            "tasks": list(self._buffer_tasks),
+        }
+        with open(partial / _SHARD_FILE, "wb") as file:
+            pickle.dump(content, file, protocol=pickle.HIGHEST_PROTOCOL)
+        for key in self._video_keys:
+            os.replace(self._segment_path(key), partial / f"{_safe(key)}.mp4")
+        os.replace(partial, folder)
+        self._reset_buffer()
+        return length
+
+    def import_episode(self, folder: str | os.PathLike[str]) -> int:
+        """Save the episode of a shard written by :meth:`export_episode`; return its index.
+
+        The shard's video segments are moved into the dataset; the rest of the folder
+        is left for the caller to delete.
+
+        Raises:
+            ValueError: the shard's features differ from this dataset's, or it is not a
+                complete shard.
+            RuntimeError: frames were added and not saved, or the dataset was finalized.
+        """
+        self._check_open()
+        if self.episode_buffer_size:
+            raise RuntimeError(
+                f"import_episode() needs an empty episode buffer; {self.episode_buffer_size} "
+                "frames were added and not saved. Call save_episode() or clear_episode_buffer()."
+            )
+        folder = Path(folder)
+        path = folder / _SHARD_FILE
+        if not path.is_file():
+            raise ValueError(
+                f"{str(folder)!r} is not an episode shard: expected {_SHARD_FILE} written by "
+                "LeRobotDatasetWriter.export_episode()."
+            )
+        with open(path, "rb") as file:
+            content = pickle.load(file)  # our own shard, written by export_episode
+        if content["features"] != sorted(self.features):
+            raise ValueError(
+                f"the shard in {str(folder)!r} has features {content['features']}; this dataset "
+                f"expects {sorted(self.features)}."
+            )
+        segments = {key: folder / f"{_safe(key)}.mp4" for key in self._video_keys}
+        missing = [str(p) for p in segments.values() if not p.is_file()]
+        if missing:
+            raise ValueError(f"the shard in {str(folder)!r} lacks its videos {missing}.")
+        self._reset_buffer()
+        self._buffer = {key: list(content["numeric"][key]) for key in self._numeric_keys}
+        self._buffer_tasks = list(content["tasks"])
+        self._buffer_histograms = {
+            key: np.asarray(content["histograms"][key], np.int64) for key in self._video_keys
+        }
+        for key, segment in segments.items():
+            os.replace(segment, self._segment_path(key))
+        return self.save_episode()
 
     def finalize(self) -> None:
         """Finish the dataset: drop an unsaved episode, remove scratch files. Safe twice."""

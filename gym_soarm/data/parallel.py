@@ -1,0 +1,313 @@
+"""Recording in worker processes: attempts run in parallel, episodes merge in order.
+
+:func:`record_in_workers` starts N local worker processes (``forkserver`` or ``spawn``).
+Each builds its own environment and expert, plays the attempts it is sent and exports
+each episode to a shard (its numbers and one encoded H.264 segment per camera, see
+:meth:`~gym_soarm.data.writer.LeRobotDatasetWriter.export_episode`). This process merges
+the shards into the dataset strictly in attempt order and keeps the first ``episodes``
+kept attempts, so the dataset is the same, frame for frame, whatever the number of
+workers and however they are scheduled.
+
+* A worker that dies (e.g. SIGKILL) is replaced, and its attempt runs again, from its
+  seed, in the new worker: no episode is lost or duplicated.
+* Ctrl-C stops the workers; every episode already finished is merged and kept.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import shutil
+import signal
+import traceback
+from multiprocessing.connection import Connection, wait
+from pathlib import Path
+from typing import Any
+
+from gym_soarm.data.format import SCRATCH_DIR
+from gym_soarm.data.record import FPS, AttemptPlan, record_attempt, write_variation
+from gym_soarm.data.writer import LeRobotDatasetWriter
+
+# How many times one attempt may take its worker down before the recording gives up.
+MAX_DEATHS_PER_ATTEMPT = 3
+
+
+def _worker_main(conn: Connection, plan: AttemptPlan, shard_root: str) -> None:
+    """A worker process: play the attempts received on ``conn`` and export their shards.
+
+    Replies ``("done", attempt, success, shard or None, drawn variation)`` per attempt, or
+    ``("error", text)`` once if something raised (the worker then exits).
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
+    import gymnasium as gym
+
+    from gym_soarm.expert import make_expert
+    from gym_soarm.tasks import register_task, task_names
+
+    env = writer = None
+    scratch = Path(shard_root) / f"worker-{os.getpid()}"
+    try:
+        if plan.spec.name not in task_names():
+            register_task(plan.spec)  # a task registered by the parent's own code
+        env = gym.make(plan.spec.env_id, **plan.env_kwargs)
+        expert = make_expert(env)
+        writer = LeRobotDatasetWriter.create(
+            scratch, FPS, plan.features, robot_type=plan.robot_type, overwrite=True
+        )
+        while True:
+            attempt = conn.recv()
+            if attempt is None:
+                break
+            success, drawn = record_attempt(env, expert, writer, plan, attempt)
+            shard = None
+            if success or plan.keep == "all":
+                shard = str(Path(shard_root) / f"attempt-{attempt:07d}")
+                writer.export_episode(shard)
+            else:
+                writer.clear_episode_buffer()
+            conn.send(("done", attempt, success, shard, drawn))
+    except EOFError:
+        pass  # the parent went away
+    except BaseException:
+        with contextlib.suppress(OSError):
+            conn.send(("error", traceback.format_exc()))
+    finally:
+        if env is not None:
+            env.close()
+        if writer is not None:
+            writer.finalize()
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+class _Slot:
+    """One worker process, its pipe and the attempt it is playing (or None)."""
+
+    def __init__(self, context: Any, plan: AttemptPlan, shard_root: Path) -> None:
+        self.conn, child = context.Pipe()
+        self.process = context.Process(
+            target=_worker_main, args=(child, plan, str(shard_root)), daemon=True
+        )
+        self.process.start()
+        child.close()
+        self.attempt: int | None = None
+
+    def stop(self, timeout: float) -> None:
+        """Ask the worker to finish, then end it if it does not."""
+        if self.process.is_alive():
+            with contextlib.suppress(OSError):
+                self.conn.send(None)
+            self.process.join(timeout)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join()
+        self.conn.close()
+
+
+def _context(start_method: str | None) -> Any:
+    if start_method is None:
+        available = multiprocessing.get_all_start_methods()
+        start_method = "forkserver" if "forkserver" in available else "spawn"
+    context = multiprocessing.get_context(start_method)
+    if start_method == "forkserver":
+        # The fork server imports the recorder (MuJoCo, gymnasium, the tasks) once and
+        # forks every worker from there. It never renders, so the workers may.
+        context.set_forkserver_preload([__name__])
+    return context
+
+
+class OrderedMerger:
+    """Merges finished attempts into a dataset strictly in attempt order.
+
+    Attempt ``k``'s result may arrive at any time; it is saved once every attempt before
+    it is merged, and only while fewer than ``episodes`` episodes are kept, so the
+    dataset never depends on which attempt finished first.
+
+    Args:
+        writer: the dataset.
+        seed: the recording's seed (attempt ``k`` is seeded ``seed + k``).
+        episodes: episodes to keep.
+        max_attempts: attempts to make at most.
+        bar: a tqdm progress bar to update, or None.
+        label: the progress bar's note on where attempts run (e.g. ``"2 workers"``).
+    """
+
+    def __init__(
+        self,
+        writer: LeRobotDatasetWriter,
+        seed: int,
+        episodes: int,
+        max_attempts: int,
+        bar: Any = None,
+        label: str = "",
+    ) -> None:
+        self.writer = writer
+        self.seed = seed
+        self.episodes = episodes
+        self.max_attempts = max_attempts
+        self.bar = bar
+        self.label = label
+        self.results: dict[int, tuple[bool, Path | None, dict[str, Any] | None]] = {}
+        self.next_attempt = self.merged = self.kept = self.successes = 0
+
+    @property
+    def finished(self) -> bool:
+        """Enough episodes are kept, or every allowed attempt was merged."""
+        return self.kept >= self.episodes or self.merged >= self.max_attempts
+
+    def take_attempt(self) -> int | None:
+        """The next attempt to start, or None while the ones started may be enough.
+
+        Attempts started and not merged never outnumber the episodes still needed, so
+        no attempt after the last kept one is ever played.
+        """
+        unmerged = self.next_attempt - self.merged
+        if self.next_attempt >= self.max_attempts or unmerged >= self.episodes - self.kept:
+            return None
+        self.next_attempt += 1
+        return self.next_attempt - 1
+
+    def add(
+        self, attempt: int, success: bool, shard: Path | None, drawn: dict[str, Any] | None
+    ) -> None:
+        """Note attempt ``attempt``'s outcome: its shard (None if it is not kept) and the
+        variation its reset drew (or None)."""
+        self.results[attempt] = (bool(success), shard, drawn)
+
+    def merge_ready(self) -> None:
+        """Merge every result whose predecessors are all merged."""
+        while self.merged in self.results and self.kept < self.episodes:
+            self._merge(self.merged)
+
+    def merge_finished(self) -> None:
+        """After an interruption: merge every finished attempt, in attempt order."""
+        for attempt in sorted(self.results):
+            if self.kept >= self.episodes:
+                break
+            self._merge(attempt)
+
+    def _merge(self, attempt: int) -> None:
+        success, shard, drawn = self.results.pop(attempt)
+        self.merged += 1
+        self.successes += success
+        if shard is not None:
+            index = self.writer.import_episode(shard)
+            write_variation(self.writer.root, index, self.seed + attempt, drawn)
+            shutil.rmtree(shard, ignore_errors=True)
+            self.kept += 1
+            if self.bar is not None:
+                self.bar.update(1)
+        if self.bar is not None:
+            self.bar.set_postfix(
+                success=f"{self.successes}/{self.merged}",
+                frames=self.writer.num_frames,
+                on=self.label,
+            )
+
+
+def record_in_workers(
+    writer: LeRobotDatasetWriter,
+    plan: AttemptPlan,
+    episodes: int,
+    max_attempts: int,
+    workers: int,
+    start_method: str | None = None,
+    bar: Any = None,
+) -> tuple[int, int, bool]:
+    """Record attempts ``0, 1, ...`` in ``workers`` processes into ``writer``, in order.
+
+    Args:
+        writer: the dataset being written (its scratch folder holds the shards).
+        plan: the recording's settings, sent to every worker.
+        episodes: episodes to keep.
+        max_attempts: attempts to make at most.
+        workers: worker processes.
+        start_method: ``"forkserver"`` (default where available) or ``"spawn"``.
+        bar: a tqdm progress bar to update, or None.
+
+    Returns:
+        (attempts, successes, interrupted): the attempts merged (exactly those a single
+        process would have made) and their successes, and whether Ctrl-C stopped it.
+
+    Raises:
+        RuntimeError: a worker raised (the message holds its traceback), or one attempt
+            took its worker down :data:`MAX_DEATHS_PER_ATTEMPT` times.
+    """
+    context = _context(start_method)
+    shard_root = writer.root / SCRATCH_DIR / "shards"
+    shard_root.mkdir(parents=True, exist_ok=True)
+    merger = OrderedMerger(writer, plan.seed, episodes, max_attempts, bar, f"{workers} workers")
+    retry: list[int] = []  # attempts whose worker died, lowest first
+    deaths: dict[int, int] = {}
+    interrupted = False
+    slots: list[_Slot] = []
+
+    try:
+        slots = [_Slot(context, plan, shard_root) for _ in range(workers)]
+        while True:
+            merger.merge_ready()
+            if merger.finished:
+                break
+            # Attempts not merged yet never exceed the episodes still needed: no attempt
+            # past the last kept one is ever played, whatever the timing.
+            for index, slot in enumerate(slots):
+                if slot.attempt is not None:
+                    continue
+                attempt = retry.pop(0) if retry else merger.take_attempt()
+                if attempt is None:
+                    break
+                try:
+                    slot.conn.send(attempt)
+                except OSError:  # it died while idle: a new worker takes the attempt
+                    slot.stop(0)
+                    slot = slots[index] = _Slot(context, plan, shard_root)
+                    slot.conn.send(attempt)
+                slot.attempt = attempt
+            busy = [slot for slot in slots if slot.attempt is not None]
+            if not busy:
+                raise RuntimeError(
+                    f"no attempt is running and attempt {merger.merged} has no result; "
+                    "expected a worker to be playing it (this is a bug in gym_soarm)."
+                )
+            ready = set(wait([s.conn for s in busy] + [s.process.sentinel for s in busy]))
+            for index, slot in enumerate(slots):
+                if slot.conn not in ready and slot.process.sentinel not in ready:
+                    continue
+                message = None
+                if slot.conn in ready:
+                    try:
+                        message = slot.conn.recv()
+                    except (EOFError, OSError):
+                        message = None
+                if message is not None and message[0] == "error":
+                    raise RuntimeError(f"a recording worker failed:\n{message[1]}")
+                if message is not None:
+                    _, attempt, success, shard, drawn = message
+                    merger.add(attempt, success, None if shard is None else Path(shard), drawn)
+                    slot.attempt = None
+                    continue
+                # The worker died mid-attempt: replace it and play the attempt again.
+                slot.process.join()
+                lost = slot.attempt
+                slot.stop(0)
+                if lost is not None:
+                    deaths[lost] = deaths.get(lost, 0) + 1
+                    if deaths[lost] >= MAX_DEATHS_PER_ATTEMPT:
+                        raise RuntimeError(
+                            f"attempt {lost} (seed {plan.seed + lost}) took its worker down "
+                            f"{deaths[lost]} times (last exit code {slot.process.exitcode}); "
+                            "expected a worker to finish it. A script that records with workers "
+                            'must start them under `if __name__ == "__main__":` (spawn and '
+                            "forkserver import the main module again); otherwise try the attempt "
+                            "alone with workers=1."
+                        )
+                    retry.append(lost)
+                    retry.sort()
+                slots[index] = _Slot(context, plan, shard_root)
+    except KeyboardInterrupt:
+        interrupted = True
+        merger.merge_finished()  # every finished episode is kept, in attempt order
+    finally:
+        for slot in slots:
+            slot.stop(0 if interrupted else 5)
+    return merger.merged, merger.successes, interrupted
