@@ -39,6 +39,7 @@ ROBOT_BASE_BODY = "base"
 JAW_PAD_GEOMS: tuple[str, str] = ("fixed_jaw_pad", "moving_jaw_pad")
 JAW_TOUCH_SENSORS: tuple[str, str] = ("fixed_jaw_touch", "moving_jaw_touch")
 HOME_KEYFRAME = "home"
+ROBOT_BASE_BODY = "base"
 
 # Timing: physics at 500 Hz, control at 50 Hz.
 PHYSICS_TIMESTEP_S = 0.002

@@ -16,6 +16,7 @@ from dm_control.rl import control
 from gymnasium import spaces
 
 from gym_soarm import constants
+from gym_soarm.control import CONTROL_MODES, ControlMode, make_control
 from gym_soarm.render.backend import RENDER_QUALITIES
 from gym_soarm.render.camera import CameraRenderer
 from gym_soarm.sim.physics import SoArmPhysics
@@ -41,7 +42,6 @@ IMAGE_MODALITIES = ("rgb", "depth", "segmentation")
 # LeRobot's evaluation (lerobot >= 0.6) marks the start of every rollout with this reset
 # option; it is accepted and has no effect.
 LEROBOT_ROLLOUT_OPTION = "lerobot_new_rollout"
-_WRIST_ROLL = constants.JOINT_NAMES.index("wrist_roll")
 
 
 class SoArmEnv(gym.Env):
@@ -53,8 +53,11 @@ class SoArmEnv(gym.Env):
     (``task_description``). This class adapts it to Gymnasium: it checks arguments,
     builds the spaces, steps the physics and renders the cameras.
 
-    **Actions** ``Box((6,), float32)``: absolute servo targets in radians, in the
-    order of the table below; values outside the bounds are clipped.
+    **Actions** ``Box((6,), float32)``; values outside the bounds are clipped. With the
+    default ``control_mode="joint_pos"``: absolute servo targets in radians, in the
+    order of the table below. The other modes (changes of the targets, the jaws' pose
+    in the robot's base frame or changes of it) are described in
+    :mod:`gym_soarm.control`.
 
     ===  ===============  ==================  =====
     idx  joint/actuator   range (rad)         note
@@ -127,6 +130,11 @@ class SoArmEnv(gym.Env):
             (the follower's Feetech STS3215: speed-limited, quantised targets with
             backlash and its stall torque as force range; see
             :class:`gym_soarm.sim.randomization.Sts3215Servo`).
+        control_mode: what an action means: ``"joint_pos"`` (absolute servo targets),
+            ``"joint_delta"`` (changes of the servo targets), ``"ee_delta"`` (changes of
+            the jaws' pose) or ``"ee_pose"`` (the jaws' pose); see
+            :mod:`gym_soarm.control`. The ee modes add ``ik_error_m`` and
+            ``ik_error_rad`` to ``info``.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": constants.RENDER_FPS}
@@ -150,6 +158,7 @@ class SoArmEnv(gym.Env):
         servo_model: str = "ideal",
         object_placement: str | None = None,
         distractors: int = 0,
+        control_mode: str = "joint_pos",
     ) -> None:
         # Validate every argument before building anything.
         spec = get_task(task)
@@ -170,6 +179,7 @@ class SoArmEnv(gym.Env):
         check_choice("object_placement", object_placement, PLACEMENTS, none_ok=True)
         distractors = check_int("distractors", distractors, 0, MAX_DISTRACTORS)
         task_logic: Task = spec.make_task(object_placement)  # refuses an unsupported placement
+        check_choice("control_mode", control_mode, CONTROL_MODES)
 
         self.render_mode = render_mode
         self.obs_type = obs_type
@@ -182,6 +192,7 @@ class SoArmEnv(gym.Env):
         self.reward_type = reward_type
         self.units = units
         self.wrist_roll_offset_deg = wrist_roll_offset_deg
+        self.control_mode = control_mode
         self._units = joint_units(units, wrist_roll_offset_deg)
         self.image_modalities = modalities
         self._rgb = "rgb" in modalities
@@ -240,12 +251,10 @@ class SoArmEnv(gym.Env):
         self._last_obs: Any = None
         self._last_info: dict[str, Any] = {}
 
-        # Actions are clipped in radians; the space shows the bounds in the chosen units.
-        self._action_low, self._action_high = self._physics.control_range()
-        action_low, action_high = self._units.bounds(self._action_low, self._action_high)
-        self.action_space = spaces.Box(
-            action_low.astype(np.float32), action_high.astype(np.float32), dtype=np.float32
-        )
+        # The control mode turns an action into servo targets (clipped in radians).
+        self._control = make_control(control_mode, self._physics, self._units)
+        self._commanded = self._physics.joint_targets().copy()
+        self.action_space = self._control.action_space
         self.observation_space = self._make_observation_space()
 
         if render_mode == "human":
@@ -303,6 +312,18 @@ class SoArmEnv(gym.Env):
         return self._units
 
     @property
+    def control(self) -> ControlMode:
+        """The control mode: the action's meaning, names and conversions (e.g. the
+        expert's ``control.action_for_targets(targets_rad, env.commanded_targets)``)."""
+        return self._control
+
+    @property
+    def commanded_targets(self) -> np.ndarray:
+        """The six servo targets (rad) the last step set, or the reset's: the targets
+        that ``joint_delta`` and ``ee_delta`` actions change (a copy)."""
+        return self._commanded.copy()
+
+    @property
     def task_logic(self) -> Task:
         """The task object holding this environment's episode logic."""
         return self._task
@@ -350,33 +371,25 @@ class SoArmEnv(gym.Env):
             array = action  # the common case, already known to be a real array of the right shape
         else:
             array = self._check_action_array(action)
-        array = array.astype(np.float64)
+        array = array.astype(np.float64)  # our own copy, which the control mode may modify
         if not np.isfinite(array).all():
-            bad = [constants.JOINT_NAMES[i] for i in np.flatnonzero(~np.isfinite(array))]
+            names = self._control.action_names
+            bad = [names[i] for i in np.flatnonzero(~np.isfinite(array))]
             raise ValueError(
                 f"action must be finite; got {array.tolist()!r} with NaN/inf for {bad}. "
                 "The simulation was not stepped; check the policy's output (e.g. its "
                 "normalisation statistics) before stepping."
             )
-        if self._units.wrist_roll_offset_rad:
-            # A wrapped wrist_roll value beyond the Box would come back a turn away:
-            # clip it to the Box first, as every other joint is clipped.
-            roll = _WRIST_ROLL
-            array[roll] = min(
-                max(array[roll], self.action_space.low[roll]), self.action_space.high[roll]
-            )
-        if self.units != "radians":
-            array = self._units.to_radians(array)
-        # In place on our own copy; the same values as np.clip, with less overhead.
-        np.maximum(array, self._action_low, out=array)
-        return np.minimum(array, self._action_high, out=array)
+        return array
 
     def _check_action_array(self, action: Any) -> np.ndarray:
         try:
             array = np.asarray(action)
         except (TypeError, ValueError) as exc:
             raise ValueError(
-                f"action must be an array of 6 joint targets in {self.units}; got {action!r} ({exc})."
+                f"action must be an array of shape {self.action_space.shape} in "
+                f"control_mode={self.control_mode!r}: {self._control.description}; got "
+                f"{action!r} ({exc}). Pass e.g. env.action_space.sample()."
             ) from None
         if array.dtype == np.bool_ or not np.issubdtype(array.dtype, np.number):
             raise ValueError(
@@ -390,9 +403,9 @@ class SoArmEnv(gym.Env):
             )
         if array.shape != self.action_space.shape:
             raise ValueError(
-                f"action must have shape {self.action_space.shape} (one target per joint: "
-                f"{', '.join(constants.JOINT_NAMES)}); got shape {array.shape}. Pass one "
-                "target per joint, e.g. env.action_space.sample()."
+                f"action must have shape {self.action_space.shape} in control_mode="
+                f"{self.control_mode!r}: {self._control.description}; got shape "
+                f"{array.shape}. Pass e.g. env.action_space.sample()."
             )
         return array
 
@@ -435,6 +448,8 @@ class SoArmEnv(gym.Env):
             self._pending_target = self._physics.joint_targets().copy()
         if self._servo is not None:
             self._servo.reset(self._physics.joint_targets())
+        self._control.reset()
+        self._commanded = self._physics.joint_targets().copy()
         self._needs_reset = False
         self._step_count = 0
         obs = self._observation()
@@ -465,9 +480,11 @@ class SoArmEnv(gym.Env):
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         self._check_open("step")
-        target = self._validate_action(action)
+        array = self._validate_action(action)
         if self._needs_reset:
             raise RuntimeError(f"call reset() before step(): {self._no_episode_reason}.")
+        target = self._control.targets(array, self._commanded)
+        self._commanded = target.copy()
         if self._delay_steps:
             # The servos receive the previous step's action.
             target, self._pending_target = self._pending_target, target
@@ -668,5 +685,6 @@ class SoArmEnv(gym.Env):
             "reward_terms": dict(terms),
             "task": self.task_description,
             "physics_unstable": False,
+            **self._control.info(),
         }
         return self._last_info

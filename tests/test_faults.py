@@ -158,6 +158,7 @@ BAD_MAKE_KWARGS = [
     ("reward_type", "shaped"),
     ("task", "juggle"),
     ("units", "furlongs"),
+    ("control_mode", "cartesian"),
 ]
 BAD_OPTIONS = [
     ({"cube_grid_position": 9}, "cube_grid_position", "9"),

@@ -197,7 +197,25 @@ def test_env_config_forwards_the_wrist_roll_offset():
         vector.close()
 
 
+def test_env_config_forwards_the_control_mode():
+    config = SoArmEnvConfig(
+        task="LiftCube-v0", obs_type="environment_state_agent_pos", control_mode="ee_delta"
+    )
+    assert config.gym_kwargs["control_mode"] == "ee_delta"
+    assert tuple(config.features["action"].shape) == (6,)
+    vector = make_env(config, n_envs=1)["soarm"][0]
+    try:
+        vector.reset(seed=0)
+        space = vector.single_action_space
+        assert space.shape == (6,)
+        np.testing.assert_allclose(space.high[:3], 0.01, rtol=1e-6)  # metres per step
+    finally:
+        vector.close()
+
+
 def test_bad_env_config_values():
+    with pytest.raises(ValueError, match="control_mode must be one of"):
+        SoArmEnvConfig(control_mode="cartesian")
     with pytest.raises(ValueError, match="units must be one of"):
         SoArmEnvConfig(units="deg")
     with pytest.raises(ValueError, match="applies to LeRobot's units"):

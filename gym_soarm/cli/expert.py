@@ -2,7 +2,7 @@
 
 Runs :func:`gym_soarm.expert.evaluate` on every registered task (or the ones named),
 with state observations, and prints one line per task: success, steps to success and
-the time taken.
+the time taken. ``--control-mode`` makes the expert answer in another control mode.
 """
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ import argparse
 import time
 from collections.abc import Sequence
 
+from gym_soarm.control import CONTROL_MODES
 from gym_soarm.expert import evaluate
 from gym_soarm.tasks import get_task, task_names, task_spellings
 
@@ -37,6 +38,12 @@ def main(argv: Sequence[str] | None = None) -> None:
         help="seeds per grid cell and yaw for grid tasks (default 3), episodes for the "
         "others (default 100)",
     )
+    parser.add_argument(
+        "--control-mode",
+        choices=CONTROL_MODES,
+        default="joint_pos",
+        help="the environment's control mode, in which the expert answers (default joint_pos)",
+    )
     parser.add_argument("--verbose", action="store_true", help="print every failed episode")
     args = parser.parse_args(argv)
     if args.seeds is not None and args.seeds < 1:
@@ -44,7 +51,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     names = task_names() if "all" in args.task else [get_task(t).name for t in args.task]
     for name in dict.fromkeys(names):
         started = time.perf_counter()
-        results = evaluate(name, args.seeds)
+        results = evaluate(name, args.seeds, control_mode=args.control_mode)
         elapsed = time.perf_counter() - started
         wins = sum(r.success for r in results)
         steps = sorted(r.steps for r in results if r.success)

@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from gym_soarm import constants
+from gym_soarm.control import CONTROL_MODES
 from gym_soarm.data.record import (
     CAMERA_CONFIG_CHOICES,
     KEEP_CHOICES,
@@ -65,6 +66,14 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="DEG",
         help="with LeRobot units: the real arm's wrist_roll reading when the model's is at "
         "0 rad, e.g. -90 (default 0)",
+    )
+    parser.add_argument(
+        "--control-mode",
+        choices=CONTROL_MODES,
+        default="joint_pos",
+        help="what the recorded action is: joint targets (joint_pos), their changes "
+        "(joint_delta), the jaws' pose in the robot's base frame (ee_pose) or its changes "
+        "(ee_delta) (default joint_pos)",
     )
     parser.add_argument(
         "--keep",
@@ -149,6 +158,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "object_placement": args.object_placement,
                 "distractors": args.distractors,
             },
+            control_mode=args.control_mode,
         )
     except (ValueError, TypeError, FileExistsError, ImportError) as exc:
         parser.error(str(exc))

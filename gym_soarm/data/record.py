@@ -8,7 +8,8 @@ front and wrist cameras at 480 x 640, in LeRobot's follower units::
 
 Each frame holds the observation before a step and the action sent at that step:
 ``observation.state`` (the six joints in the chosen units, named ``shoulder_pan.pos`` ...
-``gripper.pos``), ``action`` (the expert's six joint targets, same units), one
+``gripper.pos``), ``action`` (the expert's action in the chosen control mode: by default
+its six joint targets, same units; see :mod:`gym_soarm.control`), one
 ``observation.images.<camera>`` video per camera (or ``observation.environment_state``
 when recording without cameras), and ``next.reward``, ``next.success``, ``next.done`` of
 the step. Each episode's task sentence is the environment's ``task_description`` after its reset
@@ -19,8 +20,10 @@ standard deviation SIGMA radians on every joint, while the dataset keeps the exp
 clean action as the label (DART): the demonstrations then visit the states a slightly
 imperfect policy reaches, and show how the expert recovers from them.
 
-The expert computes its actions in radians from the simulation state; they are
-converted to the recording's units with :mod:`gym_soarm.units`.
+The expert computes its joint targets in radians from the simulation state; the
+environment's control mode turns them into its action
+(``env.unwrapped.control.action_for_targets``): joint targets in the recording's units
+(:mod:`gym_soarm.units`), their changes, or the jaws' pose or its change.
 """
 
 from __future__ import annotations
@@ -38,11 +41,12 @@ import gymnasium as gym
 import numpy as np
 
 from gym_soarm import constants
+from gym_soarm.control import CONTROL_MODES, action_names
 from gym_soarm.data import LeRobotDatasetWriter
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.base import TaskSpec
 from gym_soarm.units import FEATURE_NAMES, joint_units
-from gym_soarm.validation import check_int, parse_size, resolve_camera_config
+from gym_soarm.validation import check_choice, check_int, parse_size, resolve_camera_config
 
 CAMERA_CONFIG_NONE = "none"
 CAMERA_CONFIG_CHOICES: tuple[str, ...] = (*constants.CAMERA_CONFIGS, CAMERA_CONFIG_NONE)
@@ -110,6 +114,7 @@ def dataset_features(
     height: int,
     width: int,
     environment_state: Sequence[str] | None,
+    control_mode: str = "joint_pos",
 ) -> dict[str, dict[str, Any]]:
     """The LeRobot features of a gym_soarm recording.
 
@@ -119,10 +124,14 @@ def dataset_features(
         width: image width.
         environment_state: the names of ``observation.environment_state``'s values
             (the env's ``state_names``), or None to record no environment state.
+        control_mode: names the ``action`` values (``shoulder_pan.pos`` ... for
+            ``joint_pos``, ``ee.x`` ... for ``ee_pose``; see
+            :func:`gym_soarm.control.action_names`).
     """
     names = list(FEATURE_NAMES)
+    actions = list(action_names(control_mode))
     features: dict[str, dict[str, Any]] = {
-        "action": {"dtype": "float32", "shape": (len(names),), "names": names},
+        "action": {"dtype": "float32", "shape": (len(actions),), "names": actions},
         "observation.state": {"dtype": "float32", "shape": (len(names),), "names": names},
     }
     for camera in cameras:
@@ -170,7 +179,7 @@ def record_attempt(
         None). The frames stay in the writer's episode buffer: the caller saves, exports
         or clears them.
     """
-    conversion = joint_units(plan.units, plan.wrist_roll_offset_deg)
+    base = env.unwrapped
     noise = np.random.default_rng([plan.seed, attempt])
     obs, info = env.reset(seed=plan.seed + attempt)
     drawn = info.get("variation")
@@ -178,12 +187,15 @@ def record_attempt(
     done = False
     while not done:
         action_rad = expert.next_targets_radians()  # radians, whatever the units
-        executed_rad = action_rad
+        current_rad = base.commanded_targets
+        action = base.control.action_for_targets(action_rad, current_rad)
+        executed = action
         if plan.dart_noise > 0:
-            executed_rad = action_rad + noise.normal(0.0, plan.dart_noise, action_rad.shape)
+            noisy_rad = action_rad + noise.normal(0.0, plan.dart_noise, action_rad.shape)
+            executed = base.control.action_for_targets(noisy_rad, current_rad)
         frame: dict[str, Any] = {
             "observation.state": obs["agent_pos"].astype(np.float32),
-            "action": conversion.from_radians(action_rad).astype(np.float32),
+            "action": action,
             "task": env.unwrapped.task_description,
         }
         if plan.state_only:
@@ -191,7 +203,7 @@ def record_attempt(
         else:
             for camera in plan.cameras:
                 frame[f"observation.images.{camera}"] = obs["pixels"][camera]
-        obs, reward, terminated, truncated, info = env.step(conversion.from_radians(executed_rad))
+        obs, reward, terminated, truncated, info = env.step(executed)
         done = terminated or truncated
         frame["next.reward"] = np.array([reward], np.float32)
         frame["next.success"] = np.array([info["is_success"]])
@@ -229,6 +241,7 @@ def record(
     start_method: str | None = None,
     ray_address: str | None = None,
     variation: Mapping[str, Any] | None = None,
+    control_mode: str = "joint_pos",
 ) -> RecordSummary:
     """Record ``episodes`` episodes of the scripted expert into a dataset folder.
 
@@ -269,6 +282,8 @@ def record(
             ``physics_randomization``, ``servo_model``, ``object_placement``,
             ``distractors``. What each kept episode's reset drew (``info["variation"]``)
             is written to ``meta/variation.jsonl``, one line per episode.
+        control_mode: the environment's control mode (one of
+            :data:`gym_soarm.control.CONTROL_MODES`): what the recorded ``action`` holds.
 
     Raises:
         ValueError: a bad argument; nothing is written then.
@@ -280,6 +295,7 @@ def record(
     episodes = check_int("episodes", episodes, 1)
     seed = check_int("seed", seed, 0)
     joint_units(units, wrist_roll_offset_deg)  # checks units and the offset
+    check_choice("control_mode", control_mode, CONTROL_MODES)
     if keep not in KEEP_CHOICES:
         raise ValueError(f"keep must be one of {', '.join(KEEP_CHOICES)}; got {keep!r}.")
     if isinstance(dart_noise, bool) or not isinstance(dart_noise, (int, float)):
@@ -313,6 +329,7 @@ def record(
         **variation,
         "units": units,
         "wrist_roll_offset_deg": wrist_roll_offset_deg,
+        "control_mode": control_mode,
     }
     if state_only:
         env_kwargs["obs_type"] = "environment_state_agent_pos"
@@ -327,7 +344,7 @@ def record(
     env = gym.make(spec.env_id, **env_kwargs)
     try:
         state_names = env.unwrapped.state_names if state_only else None
-        features = dataset_features(cameras, height, width, environment_state=state_names)
+        features = dataset_features(cameras, height, width, state_names, control_mode)
         robot_type = "gym_soarm" if units == "radians" else "so101_follower"
         writer = LeRobotDatasetWriter.create(
             root, FPS, features, robot_type=robot_type, overwrite=overwrite

@@ -10,6 +10,7 @@ from lerobot.envs.configs import EnvConfig
 
 import gym_soarm  # noqa: F401  (registers gym_soarm/<task> wherever this config is unpickled)
 from gym_soarm import constants
+from gym_soarm.control import CONTROL_MODES
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.distractors import MAX_DISTRACTORS
@@ -59,6 +60,9 @@ class SoArmEnvConfig(EnvConfig):
         servo_model: ``"ideal"`` or ``"sts3215"``.
         object_placement: ``"grid"`` or ``"uniform"``; None for the task's default.
         distractors: extra objects on the table, 0 to 4.
+        control_mode: what the policy's action means: ``"joint_pos"``,
+            ``"joint_delta"``, ``"ee_delta"`` or ``"ee_pose"`` (see
+            :mod:`gym_soarm.control`); six values in every mode.
     """
 
     task: str | None = "PickAndPlaceCube-v0"
@@ -77,6 +81,7 @@ class SoArmEnvConfig(EnvConfig):
     servo_model: str = "ideal"
     object_placement: str | None = None
     distractors: int = 0
+    control_mode: str = "joint_pos"
     features: dict[str, PolicyFeature] = field(default_factory=dict)
     features_map: dict[str, str] = field(default_factory=dict)
 
@@ -95,6 +100,7 @@ class SoArmEnvConfig(EnvConfig):
         check_choice("object_placement", self.object_placement, ("grid", "uniform"), none_ok=True)
         get_task(self.task).make_task(self.object_placement)  # refuses an unsupported placement
         self.distractors = check_int("distractors", self.distractors, 0, MAX_DISTRACTORS)
+        check_choice("control_mode", self.control_mode, CONTROL_MODES)
         cameras = parse_cameras(self.camera_config)
         n_joints = len(constants.JOINT_NAMES)
         features: dict[str, PolicyFeature] = {
@@ -140,6 +146,7 @@ class SoArmEnvConfig(EnvConfig):
             "servo_model": self.servo_model,
             "object_placement": self.object_placement,
             "distractors": self.distractors,
+            "control_mode": self.control_mode,
         }
         if self.episode_length is not None:
             kwargs["max_episode_steps"] = self.episode_length

@@ -20,9 +20,9 @@ import gymnasium as gym
 import numpy as np
 
 from gym_soarm import constants
+from gym_soarm.control import ControlMode
 from gym_soarm.sim.kinematics import ArmKinematics, downward_rotation
 from gym_soarm.sim.physics import SoArmPhysics
-from gym_soarm.units import JointUnits
 
 _QUARTER_TURN_RAD = math.pi / 2
 
@@ -135,7 +135,7 @@ class ScriptedExpert:
     def __init__(self, env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> None:
         self.env = env.unwrapped
         self.config = config
-        self._units: JointUnits = self.env.joint_units
+        self._control: ControlMode = self.env.control
         physics: SoArmPhysics = self.env.physics
         self._kinematics = ArmKinematics(physics.model.ptr)
         self._n_arm = len(constants.ARM_JOINT_NAMES)
@@ -190,8 +190,16 @@ class ScriptedExpert:
         self._begin_phase()
 
     def __call__(self, obs: Any = None, info: dict[str, Any] | None = None) -> np.ndarray:
-        """The next action (float32): six servo targets in the environment's ``units``."""
-        return self._units.from_radians(self.next_targets_radians()).astype(np.float32)
+        """The next action (float32) in the environment's ``control_mode`` and ``units``.
+
+        The script's servo targets (:meth:`next_targets_radians`) become the mode's
+        action through ``env.control.action_for_targets``: themselves for
+        ``joint_pos``, their change from the env's current targets
+        (``env.commanded_targets``) for ``joint_delta``, the jaws' pose (or its change)
+        by forward kinematics for the ee modes.
+        """
+        targets = self.next_targets_radians()
+        return self._control.action_for_targets(targets, self.env.commanded_targets)
 
     def next_targets_radians(self) -> np.ndarray:
         """The next six servo targets in radians (float64), gripper last.

@@ -20,6 +20,10 @@ ceiling alternate, so both see the same machine load; the ratio to the ceiling (
 median of the per-repeat ratios) shows how much the environment costs on top of what
 MuJoCo itself needs.
 
+``--control-mode`` measures another control mode (:mod:`gym_soarm.control`) with its
+own random actions, uniform in its action space; the floors of ``TARGETS`` are those of
+the default ``joint_pos`` and are checked only there.
+
 ``--processes N`` adds the aggregate throughput of ``N`` environments stepped together
 by ``gymnasium.vector.AsyncVectorEnv``. The cold ``make`` time (an empty model cache:
 rebuild the meshes and compile) is measured once per visual variant.
@@ -58,6 +62,7 @@ DEFAULT_SECONDS = 3.0
 DEFAULT_REPEATS = 3
 DEFAULT_JSON = "gym_soarm_bench.json"
 DEFAULT_TASK = "PickAndPlaceCube-v0"  # SoArm-v0, the part-one figures
+DEFAULT_CONTROL_MODE = "joint_pos"
 ACTION_SEED = 0
 N_ACTIONS = 1024  # random actions drawn up front and cycled, so drawing costs nothing
 SLICES_PER_REPEAT = 4  # each repeat alternates this many slices of env and ceiling
@@ -89,20 +94,28 @@ class BenchConfig:
     height: int
     render_quality: str
     task: str = DEFAULT_TASK
+    control_mode: str = DEFAULT_CONTROL_MODE
 
     @classmethod
-    def parse(cls, name: str, task: str = DEFAULT_TASK) -> BenchConfig:
+    def parse(
+        cls, name: str, task: str = DEFAULT_TASK, control_mode: str = DEFAULT_CONTROL_MODE
+    ) -> BenchConfig:
         """The configuration called ``name``, on ``task`` (a registered task).
 
         Raises:
             ValueError: ``name`` is not ``state`` or ``{cameras}_{W}x{H}[_fast|_high]``,
-                or ``task`` is not registered.
+                ``task`` is not registered, or ``control_mode`` is unknown.
         """
+        from gym_soarm.control import CONTROL_MODES
         from gym_soarm.tasks import get_task
+        from gym_soarm.validation import check_choice
 
         task = get_task(task).name
+        check_choice("control_mode", control_mode, CONTROL_MODES)
         if name in ("state", "state_fast"):
-            return cls("state", "environment_state_agent_pos", None, 0, 0, "fast", task)
+            return cls(
+                "state", "environment_state_agent_pos", None, 0, 0, "fast", task, control_mode
+            )
         match = _CONFIG_PATTERN.match(name)
         if match is None:
             raise ValueError(
@@ -112,7 +125,14 @@ class BenchConfig:
             )
         cameras, width, height, quality = match.groups()
         return cls(
-            name, "pixels_agent_pos", cameras, int(width), int(height), quality or "fast", task
+            name,
+            "pixels_agent_pos",
+            cameras,
+            int(width),
+            int(height),
+            quality or "fast",
+            task,
+            control_mode,
         )
 
     @property
@@ -127,7 +147,11 @@ class BenchConfig:
 
     def env_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of ``gym.make`` for this configuration."""
-        kwargs: dict[str, Any] = {"obs_type": self.obs_type, "render_quality": self.render_quality}
+        kwargs: dict[str, Any] = {
+            "obs_type": self.obs_type,
+            "render_quality": self.render_quality,
+            "control_mode": self.control_mode,
+        }
         if self.renders:
             kwargs.update(
                 camera_config=self.camera_config,
@@ -490,6 +514,7 @@ def measure_config(
         "kind": "env",
         "config": config.name,
         "task": config.task,
+        "control_mode": config.control_mode,
         "model_out": str(model_path),
     }
     env_child = _Child(_worker_args(env_job), dict(os.environ), timeout)
@@ -562,6 +587,7 @@ def measure_config(
             "kind": "vector",
             "config": config.name,
             "task": config.task,
+            "control_mode": config.control_mode,
             "seconds": seconds,
             "repeats": repeats,
             "processes": processes,
@@ -653,14 +679,15 @@ def run(
     processes: int = 1,
     progress: Callable[[str], None] | None = None,
     task: str = DEFAULT_TASK,
+    control_mode: str = DEFAULT_CONTROL_MODE,
 ) -> dict[str, Any]:
     """Measure ``configs`` and return the whole report (what ``--json`` writes).
 
     Raises:
-        ValueError: a configuration name is unknown, or seconds/repeats/processes are
-            out of range.
+        ValueError: a configuration name or the control mode is unknown, or
+            seconds/repeats/processes are out of range.
     """
-    parsed = [BenchConfig.parse(name, task) for name in configs]
+    parsed = [BenchConfig.parse(name, task, control_mode) for name in configs]
     if not parsed:
         raise ValueError("configs must name at least one configuration")
     if not (math.isfinite(seconds) and seconds > 0):
@@ -704,6 +731,7 @@ def run(
         "versions": {"gym_soarm": first.get("gym_soarm"), "mujoco": first.get("mujoco")},
         "settings": {
             "task": parsed[0].task,
+            "control_mode": control_mode,
             "seconds": seconds,
             "repeats": repeats,
             "processes": processes,
@@ -712,7 +740,7 @@ def run(
         },
         "configs": results,
         "cold_make": cold,
-        "targets": check_targets(results),
+        "targets": check_targets(results) if control_mode == DEFAULT_CONTROL_MODE else [],
     }
 
 
@@ -720,10 +748,11 @@ def _worker_main(job_text: str) -> None:
     job = json.loads(job_text)
     kind = job["kind"]
     if kind == "env":
-        _env_worker(BenchConfig.parse(job["config"], job["task"]), job["model_out"])
+        config = BenchConfig.parse(job["config"], job["task"], job["control_mode"])
+        _env_worker(config, job["model_out"])
         return
     if kind == "vector":
-        config = BenchConfig.parse(job["config"], job["task"])
+        config = BenchConfig.parse(job["config"], job["task"], job["control_mode"])
         out = _measure_vector(config, job["seconds"], job["repeats"], job["processes"])
     elif kind == "cold_make":
         out = _measure_cold_make(job["visual"], job["task"])
@@ -771,6 +800,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         default=DEFAULT_TASK,
         help="the registered task to measure (default: %(default)s, the scene of SoArm-v0)",
     )
+    parser.add_argument(
+        "--control-mode",
+        default=DEFAULT_CONTROL_MODE,
+        help="the control mode to measure, with random actions of its own action space: "
+        "joint_pos, joint_delta, ee_delta or ee_pose (default: %(default)s)",
+    )
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker:
@@ -785,13 +820,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.processes,
             progress=lambda m: print(m, file=sys.stderr, flush=True),
             task=args.task,
+            control_mode=args.control_mode,
         )
     except ValueError as exc:
         parser.error(str(exc))
     machine = report["machine"]
     print(
         f"\n{machine['cpu']} ({machine['cpu_count']} cores), GL: {machine['gl_backend']} "
-        f"({machine['gl_renderer']}), load average {machine['load_average_start']}"
+        f"({machine['gl_renderer']}), load average {machine['load_average_start']}, "
+        f"control mode {report['settings']['control_mode']}"
     )
     print(format_table(report["configs"]))
     for cold in report["cold_make"]:
