@@ -35,6 +35,18 @@ if TYPE_CHECKING:
     from gym_soarm.tasks.scripted import ScriptedExpert
 
 
+REACH_MARGIN_M = 0.10
+"""The reach term falls to 0.1 this far beyond 1 cm from the object."""
+LIFT_HEIGHT_M = 0.05
+"""A held object whose bottom is this high counts as lifted."""
+PLACE_MARGIN_M = 0.20
+"""The place term's carry share falls to 0.1 this far beyond the target."""
+RESTING_SPEED_M_S = 0.05
+"""An object slower than this is at rest."""
+PLACE_CARRY_CREDIT = 0.8
+"""Share of a place term earned by carrying the held object over its target."""
+
+
 def norm(vector: np.ndarray) -> float:
     """Euclidean norm of a 1-D float array: what np.linalg.norm computes, with less overhead."""
     return math.sqrt(vector.dot(vector))
@@ -46,6 +58,18 @@ def tolerance(distance: float, bound: float, margin: float) -> float:
         return 1.0
     x = (distance - bound) / margin
     return float(math.exp(-math.log(10.0) * x * x))
+
+
+def reach_term(physics: SoArmPhysics, name: str) -> float:
+    """1 with the jaws' centre within 1 cm of object ``name``, falling smoothly beyond."""
+    return tolerance(
+        norm(physics.grasp_center() - physics.object_position(name)), 0.01, REACH_MARGIN_M
+    )
+
+
+def lift_term(physics: SoArmPhysics, name: str, height_m: float = LIFT_HEIGHT_M) -> float:
+    """How far object ``name``'s bottom is raised towards ``height_m``, in [0, 1]."""
+    return min(max(physics.object_height(name) / height_m, 0.0), 1.0)
 
 
 @dataclasses.dataclass(frozen=True)

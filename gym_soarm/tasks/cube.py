@@ -19,7 +19,13 @@ from gym_soarm import constants
 from gym_soarm.sim.objects import SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
-from gym_soarm.tasks.base import Task, norm, position_field, quaternion_field, tolerance
+from gym_soarm.tasks.base import (
+    Task,
+    lift_term,
+    position_field,
+    quaternion_field,
+    reach_term,
+)
 from gym_soarm.validation import ArgumentTypeError
 
 CUBE_SIZE_M = 0.03
@@ -36,10 +42,6 @@ CUBE = SceneObject(
 
 GRID_OPTION_KEYS: tuple[str, ...] = ("cube_grid_position", "cube_rotation_deg")
 """Reset options of the grid tasks: the start cell and the yaw of the cube."""
-
-REACH_MARGIN_M = 0.10
-LIFT_HEIGHT_M = 0.05
-"""The lift task's line, and the height a carried cube counts as lifted at."""
 
 
 def validate_grid_options(options: Mapping[str, Any]) -> dict[str, Any]:
@@ -164,12 +166,11 @@ class CubeGridTask(Task):
 
     # --- shared reward pieces --------------------------------------------------------
     def _reach(self, physics: SoArmPhysics) -> float:
-        distance = norm(physics.grasp_center() - physics.object_position(self.cube))
-        return tolerance(distance, 0.01, REACH_MARGIN_M)
+        return reach_term(physics, self.cube)
 
     def _lift_progress(self, physics: SoArmPhysics) -> float:
         """How far a held cube is raised towards the carry height, in [0, 1]."""
-        return min(max(physics.object_height(self.cube) / LIFT_HEIGHT_M, 0.0), 1.0)
+        return lift_term(physics, self.cube)
 
 
 CUBE_STATE_FIELDS = (

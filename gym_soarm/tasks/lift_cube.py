@@ -13,8 +13,8 @@ import numpy as np
 
 from gym_soarm.sim.objects import Scene
 from gym_soarm.sim.physics import SoArmPhysics
-from gym_soarm.tasks.base import RewardWeights, TaskSpec
-from gym_soarm.tasks.cube import CUBE, CUBE_STATE_FIELDS, LIFT_HEIGHT_M, CubeGridTask
+from gym_soarm.tasks.base import LIFT_HEIGHT_M, RewardWeights, TaskSpec
+from gym_soarm.tasks.cube import CUBE, CUBE_STATE_FIELDS, CubeGridTask
 from gym_soarm.tasks.scripted import Phase, ScriptedExpert
 
 

@@ -47,6 +47,7 @@ from gym_soarm.sim.kinematics import downward_rotation
 from gym_soarm.sim.objects import Fixture, FixtureGeom, FixtureJoint, Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks.base import (
+    REACH_MARGIN_M,
     RewardWeights,
     Task,
     TaskSpec,
@@ -220,7 +221,6 @@ OPEN_SUCCESS_M = 0.06
 """The drawer counts as open from this far out."""
 STAGE_CREDIT_OPEN_M = 0.005
 """A drawer open this far counts as reached and grasped."""
-REACH_MARGIN_M = 0.10
 
 
 def drawer_placement(rng: np.random.Generator) -> tuple[np.ndarray, float]:

@@ -16,7 +16,15 @@ import numpy as np
 from gym_soarm import constants
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
 from gym_soarm.sim.physics import SoArmPhysics
-from gym_soarm.tasks.base import RewardWeights, TaskSpec, position_field, tolerance
+from gym_soarm.tasks.base import (
+    PLACE_CARRY_CREDIT,
+    PLACE_MARGIN_M,
+    RESTING_SPEED_M_S,
+    RewardWeights,
+    TaskSpec,
+    position_field,
+    tolerance,
+)
 from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M, CUBE_STATE_FIELDS, CubeGridTask
 from gym_soarm.tasks.scripted import PlaceExpert
 
@@ -41,11 +49,8 @@ GOAL = Fixture(
 """A thin green disc on the table (visual only: the cube rests on the table beneath it)."""
 
 PLACE_HEIGHT_TOL_M = 0.005
-PLACE_MARGIN_M = 0.20
-RESTING_SPEED_M_S = 0.05
 # Share of the place term earned by carrying the held cube over the pad, and by a cube
 # that sits on the pad but is still held or moving; the release earns the rest.
-PLACE_CARRY_CREDIT = 0.8
 PLACE_ON_PAD_CREDIT = 0.9
 
 

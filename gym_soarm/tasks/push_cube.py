@@ -36,7 +36,16 @@ from gym_soarm.sim.kinematics import downward_rotation
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
-from gym_soarm.tasks.base import RewardWeights, Task, TaskSpec, norm, position_field, tolerance
+from gym_soarm.tasks.base import (
+    REACH_MARGIN_M,
+    RESTING_SPEED_M_S,
+    RewardWeights,
+    Task,
+    TaskSpec,
+    norm,
+    position_field,
+    tolerance,
+)
 from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M, CUBE_STATE_FIELDS
 from gym_soarm.tasks.reach_target import NoGraspExpert
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase
@@ -74,12 +83,10 @@ MAX_DRAWS = 1000
 
 LIFT_LIMIT_M = 0.01
 """A cube whose bottom rises above this (m above the table) was lifted, not pushed."""
-RESTING_SPEED_M_S = 0.05
 PUSHER_BEHIND_M: tuple[float, float] = (0.02, 0.05)
 """Where the reach term wants the centre of the jaws: on the push line, this far (m)
 behind the cube's centre, at the height of the cube's centre."""
 REACH_BOUND_M = 0.015
-REACH_MARGIN_M = 0.10
 OVER_TARGET_CREDIT = 0.9
 """The push term of a cube over the square that is still moving."""
 

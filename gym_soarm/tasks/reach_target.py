@@ -28,6 +28,7 @@ from gym_soarm.sim.kinematics import downward_rotation
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks.base import (
+    REACH_MARGIN_M,
     RewardWeights,
     Task,
     TaskSpec,
@@ -41,7 +42,6 @@ TARGET_RADIUS_M = 0.015
 """The ball is as wide as the cube: smaller, it is a few pixels of a 320 x 240 camera."""
 SUCCESS_DISTANCE_M = 0.01
 """The jaws' centre must come this close to the target's centre."""
-REACH_MARGIN_M = 0.10
 TARGET_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.10, 0.10), (0.31, 0.43))
 """Where the target's (x, y) is drawn: 12 to 26 cm from the shoulder pan axis (at
 y = 0.189 m), where the jaws reach every height of :data:`TARGET_HEIGHT_M` pointing down."""

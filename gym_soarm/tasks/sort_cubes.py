@@ -43,18 +43,22 @@ from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
+    PLACE_CARRY_CREDIT,
+    PLACE_MARGIN_M,
+    REACH_MARGIN_M,
+    RESTING_SPEED_M_S,
     RewardWeights,
     Task,
     TaskSpec,
+    lift_term,
     position_field,
     quaternion_field,
     tolerance,
 )
+from gym_soarm.tasks.cube import CUBE_HALF_M
 from gym_soarm.tasks.pick_colored_cube import draw_beside_arm
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase, PlaceExpert
 
-CUBE_SIZE_M = 0.03
-CUBE_HALF_M = CUBE_SIZE_M / 2
 COLOURS: tuple[str, ...] = ("red", "green", "blue")
 """The cubes' and pads' colours, in sorting order: ``<colour>_cube`` goes on ``<colour>_pad``."""
 PAD_POSITIONS_M: dict[str, tuple[float, float, float]] = {
@@ -102,17 +106,11 @@ beside the arm's home pose (:func:`~gym_soarm.tasks.pick_colored_cube.draw_besid
 CUBE_GAP_M = 0.02
 YAW_RANGE_DEG: tuple[float, float] = (0.0, 90.0)
 
-REACH_MARGIN_M = 0.10
 REACH_HEADROOM_M = 0.10
 """Height above a cube within which ``reach`` ignores the jaws' height."""
-LIFT_HEIGHT_M = 0.05
-"""The height a carried cube counts as lifted at."""
 PLACE_HEIGHT_TOL_M = 0.005
-PLACE_MARGIN_M = 0.20
-RESTING_SPEED_M_S = 0.05
 # Share of the place stage earned by carrying the held cube over its pad, and by a cube
 # on its pad that is still in the jaws; letting go earns the rest.
-PLACE_CARRY_CREDIT = 0.8
 PLACE_ON_PAD_CREDIT = 0.9
 STAGES: tuple[str, ...] = ("reach", "grasp", "lift", "place")
 # How far along a cube is, to choose the one worked on (the stages' weights in a single
@@ -226,10 +224,7 @@ class SortCubesTask(Task):
                 "place": 0.0,
             }
         # A held cube over its pad counts as lifted, so lowering it onto the pad loses nothing.
-        if distance <= PAD_RADIUS_M:
-            lift = 1.0
-        else:
-            lift = min(max(physics.object_height(cube) / LIFT_HEIGHT_M, 0.0), 1.0)
+        lift = 1.0 if distance <= PAD_RADIUS_M else lift_term(physics, cube)
         near = tolerance(distance, PAD_RADIUS_M / 2, PLACE_MARGIN_M)
         return {"reach": 1.0, "grasp": 1.0, "lift": lift, "place": PLACE_CARRY_CREDIT * near * lift}
 

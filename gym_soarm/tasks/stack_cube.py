@@ -29,18 +29,21 @@ from gym_soarm.sim.objects import Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
+    PLACE_CARRY_CREDIT,
+    PLACE_MARGIN_M,
+    RESTING_SPEED_M_S,
     RewardWeights,
     Task,
     TaskSpec,
-    norm,
+    lift_term,
     position_field,
     quaternion_field,
+    reach_term,
     tolerance,
 )
+from gym_soarm.tasks.cube import CUBE_HALF_M, CUBE_SIZE_M
 from gym_soarm.tasks.scripted import PlaceExpert
 
-CUBE_SIZE_M = 0.03
-CUBE_HALF_M = CUBE_SIZE_M / 2
 CUBE_MASS_KG = 0.02
 RED_CUBE = SceneObject(
     name="red_cube",
@@ -82,14 +85,8 @@ STACK_RADIUS_M = 0.015
 """How far (horizontally) the red centre may lie from the blue centre on a stack."""
 STACK_HEIGHT_TOL_M = 0.005
 """How far the red cube's bottom may lie from the blue cube's top on a stack."""
-RESTING_SPEED_M_S = 0.05
-REACH_MARGIN_M = 0.10
-LIFT_HEIGHT_M = 0.05
-"""The height (of its bottom) at which a held red cube counts as lifted."""
-PLACE_MARGIN_M = 0.20
 # Share of the place term earned by carrying the held red cube over the blue one, and by a
 # red cube that sits on the blue one but is still held or moving; the release earns the rest.
-PLACE_CARRY_CREDIT = 0.8
 PLACE_ON_BLUE_CREDIT = 0.9
 
 
@@ -210,14 +207,10 @@ class StackCubeTask(Task):
             # On the blue cube but still held or moving: only the release is missing.
             return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACE_ON_BLUE_CREDIT}
         if not physics.grasped(self.top):
-            distance = norm(physics.grasp_center() - physics.object_position(self.top))
-            reach = tolerance(distance, 0.01, REACH_MARGIN_M)
+            reach = reach_term(physics, self.top)
             return {"reach": reach, "grasp": 0.0, "lift": 0.0, "place": 0.0}
         # A held red cube over the blue one counts as lifted, so lowering it loses nothing.
-        if offset <= STACK_RADIUS_M:
-            lift = 1.0
-        else:
-            lift = min(max(physics.object_height(self.top) / LIFT_HEIGHT_M, 0.0), 1.0)
+        lift = 1.0 if offset <= STACK_RADIUS_M else lift_term(physics, self.top)
         over_blue = tolerance(offset, STACK_RADIUS_M, PLACE_MARGIN_M)
         return {
             "reach": 1.0,
