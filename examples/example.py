@@ -34,10 +34,9 @@ import gym_soarm
 from gym_soarm import constants
 from gym_soarm.render.display import DisplayUnavailableError, window_support_problem
 from gym_soarm.render.video import save_frames_to_mp4
-from gym_soarm.tasks import placement, task_names
+from gym_soarm.tasks import DEFAULT_TASK, placement, task_names
 from gym_soarm.validation import check_image_size
 
-DEFAULT_TASK = "PickAndPlaceCube-v0"  # SoArm-v0
 TAIL_STEPS = 25  # keep recording 0.5 s after success: the release and retreat
 Policy = Callable[[Any, dict[str, Any]], np.ndarray]
 

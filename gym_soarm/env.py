@@ -21,7 +21,7 @@ from gym_soarm.render.backend import RENDER_QUALITIES
 from gym_soarm.render.camera import CameraRenderer
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS, STS3215, Randomizer, Sts3215Servo
-from gym_soarm.tasks import get_task
+from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.base import Task, TaskSpec
 from gym_soarm.tasks.distractors import MAX_DISTRACTORS, place_distractors, with_distractors
 from gym_soarm.units import UNITS, JointUnits, check_wrist_roll_offset, joint_units
@@ -141,7 +141,7 @@ class SoArmEnv(gym.Env):
 
     def __init__(
         self,
-        task: str = "PickAndPlaceCube-v0",
+        task: str = DEFAULT_TASK,
         obs_type: str = "pixels_agent_pos",
         camera_config: str | Sequence[str] = constants.DEFAULT_CAMERA_CONFIG,
         observation_height: int = 480,

@@ -15,6 +15,7 @@ from gym_soarm import constants
 from gym_soarm.control import CONTROL_MODES
 from gym_soarm.data.record import (
     CAMERA_CONFIG_CHOICES,
+    DEFAULT_RECORD_TASK,
     KEEP_CHOICES,
     default_root,
     record,
@@ -33,9 +34,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--task",
         choices=task_spellings(),
-        default="LiftCube-v0",
+        default=DEFAULT_RECORD_TASK,
         metavar="TASK",
-        help=f"a task: {', '.join(task_names())} (default LiftCube-v0)",
+        help=f"a task: {', '.join(task_names())} (default {DEFAULT_RECORD_TASK})",
     )
     parser.add_argument("--episodes", type=int, default=10, help="episodes to keep (default 10)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the first attempt")

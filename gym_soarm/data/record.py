@@ -43,7 +43,7 @@ import numpy as np
 from gym_soarm import constants
 from gym_soarm.control import CONTROL_MODES, action_names
 from gym_soarm.data import LeRobotDatasetWriter
-from gym_soarm.tasks import get_task
+from gym_soarm.tasks import get_task, lift_cube
 from gym_soarm.tasks.base import TaskSpec
 from gym_soarm.units import FEATURE_NAMES, joint_units
 from gym_soarm.validation import check_choice, check_int, parse_size, resolve_camera_config
@@ -60,6 +60,8 @@ VARIATION_KEYWORDS: tuple[str, ...] = (
     "distractors",
 )
 VARIATION_PATH = "meta/variation.jsonl"
+DEFAULT_RECORD_TASK = lift_cube.SPEC.name
+"""The recorder's default task: lifting the cube, the shortest demonstration."""
 FPS = constants.RENDER_FPS
 
 
@@ -225,7 +227,7 @@ def write_variation(
 
 def record(
     root: str | os.PathLike[str],
-    task: str = "LiftCube-v0",
+    task: str = DEFAULT_RECORD_TASK,
     episodes: int = 10,
     seed: int = 0,
     camera_config: str | Sequence[str] = "front_wrist",

@@ -12,7 +12,7 @@ import gym_soarm  # noqa: F401  (registers gym_soarm/<task> wherever this config
 from gym_soarm import constants
 from gym_soarm.control import CONTROL_MODES
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
-from gym_soarm.tasks import get_task
+from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.distractors import MAX_DISTRACTORS
 from gym_soarm.units import UNITS, check_wrist_roll_offset
 from gym_soarm.validation import check_choice, check_int, parse_cameras
@@ -65,7 +65,7 @@ class SoArmEnvConfig(EnvConfig):
             :mod:`gym_soarm.control`); six values in every mode.
     """
 
-    task: str | None = "PickAndPlaceCube-v0"
+    task: str | None = DEFAULT_TASK
     fps: int = constants.RENDER_FPS
     episode_length: int | None = None
     obs_type: str = "pixels_agent_pos"

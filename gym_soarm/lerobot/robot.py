@@ -34,6 +34,7 @@ from gym_soarm import constants
 from gym_soarm.env import SoArmEnv
 from gym_soarm.lerobot.config import check_task
 from gym_soarm.render.backend import RENDER_QUALITIES
+from gym_soarm.tasks import DEFAULT_TASK
 from gym_soarm.units import FEATURE_NAMES, LEROBOT, UNITS, check_wrist_roll_offset
 from gym_soarm.validation import check_choice, check_image_size, parse_cameras
 
@@ -64,7 +65,7 @@ class SimSoArmFollowerConfig(RobotConfig):
         render_quality: ``"fast"`` or ``"high"``.
     """
 
-    task: str = "PickAndPlaceCube-v0"
+    task: str = DEFAULT_TASK
     camera_config: str = "front_wrist"
     observation_height: int = 480
     observation_width: int = 640

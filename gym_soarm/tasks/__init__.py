@@ -34,6 +34,9 @@ BUILTIN_TASK_MODULES: tuple[str, ...] = (
 )
 """The built-in task modules, in the order the registry (and the README) lists them."""
 
+DEFAULT_TASK: str = "PickAndPlaceCube-v0"
+"""The task of the original id ``SoArm-v0``: the default of every program that takes a task."""
+
 BUILTIN_TASKS: tuple[str, ...] = tuple(
     register_task(importlib.import_module(f"gym_soarm.tasks.{module}").SPEC).name
     for module in BUILTIN_TASK_MODULES
@@ -43,6 +46,7 @@ BUILTIN_TASKS: tuple[str, ...] = tuple(
 __all__ = [
     "BUILTIN_TASKS",
     "BUILTIN_TASK_MODULES",
+    "DEFAULT_TASK",
     "ENV_IDS",
     "StateField",
     "Task",

@@ -50,6 +50,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from gym_soarm.tasks import DEFAULT_TASK
+
 DEFAULT_CONFIGS: tuple[str, ...] = (
     "state",
     "front_only_640x480",
@@ -61,7 +63,6 @@ DEFAULT_CONFIGS: tuple[str, ...] = (
 DEFAULT_SECONDS = 3.0
 DEFAULT_REPEATS = 3
 DEFAULT_JSON = "gym_soarm_bench.json"
-DEFAULT_TASK = "PickAndPlaceCube-v0"  # SoArm-v0, the part-one figures
 DEFAULT_CONTROL_MODE = "joint_pos"
 ACTION_SEED = 0
 N_ACTIONS = 1024  # random actions drawn up front and cycled, so drawing costs nothing

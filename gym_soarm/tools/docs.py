@@ -38,4 +38,6 @@ def env_table() -> str:
 
 
 if __name__ == "__main__":
-    print(env_table())
+    from gym_soarm.cli.docs import main
+
+    main()
