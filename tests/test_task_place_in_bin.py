@@ -26,7 +26,7 @@ from gym_soarm.tasks.place_in_bin import (
     BIN_WALL_M,
     START_REGION_M,
 )
-from gym_soarm.tasks.stack_cube import ARM_SHADOW_HALF_WIDTH_M
+from gym_soarm.tasks.placement import ARM_SHADOW_HALF_WIDTH_M
 
 
 @pytest.fixture

@@ -17,8 +17,8 @@ import gym_soarm
 from gym_soarm.expert import make_expert
 from gym_soarm.sim.kinematics import ArmKinematics
 from gym_soarm.tasks import placement
+from gym_soarm.tasks.placement import ARM_SHADOW_HALF_WIDTH_M
 from gym_soarm.tasks.stack_cube import (
-    ARM_SHADOW_HALF_WIDTH_M,
     BLUE_CUBE,
     CUBE_HALF_M,
     CUBE_SIZE_M,

@@ -45,7 +45,6 @@ from gym_soarm.tasks.base import (
 )
 from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M
 from gym_soarm.tasks.scripted import PlaceExpert
-from gym_soarm.tasks.stack_cube import draw_beside_arm
 
 BIN_POSITION_M: tuple[float, float, float] = (0.15, 0.30, 0.0)
 """Where the bin stands: the centre of its floor plate's underside, on the table."""
@@ -127,7 +126,7 @@ class PlaceInBinTask(Task):
         physics.reset_to_home()
         bin_x, bin_y, _ = BIN_POSITION_M
         keep_clear = ((bin_x, bin_y, math.hypot(_OUTER_HALF_M, _OUTER_HALF_M)),)
-        ((x, y),) = draw_beside_arm(
+        ((x, y),) = placement.draw_beside_arm(
             rng,
             [CUBE.footprint_radius_m],
             START_REGION_M,

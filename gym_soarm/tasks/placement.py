@@ -47,6 +47,13 @@ def draw_grid_start(
     return cell, float(yaw_deg)
 
 
+ARM_SHADOW_HALF_WIDTH_M = 0.05
+"""Objects kept out of the arm's shadow start at least this far from the line x = 0:
+nearer, the arm's home pose hides them from the overview camera."""
+MAX_LAYOUT_DRAWS = 1000
+"""Whole layouts drawn before :func:`draw_beside_arm` gives up."""
+
+
 def draw_uniform_positions(
     rng: np.random.Generator,
     radii_m: Sequence[float],
@@ -85,3 +92,29 @@ def draw_uniform_positions(
         placed.append((x, y, radius))
         positions.append((x, y))
     return positions
+
+
+def draw_beside_arm(
+    rng: np.random.Generator,
+    radii_m: Sequence[float],
+    region_m: tuple[tuple[float, float], tuple[float, float]],
+    keep_clear: Sequence[tuple[float, float, float]] = (),
+    gap_m: float = 0.01,
+) -> list[tuple[float, float]]:
+    """Like :func:`draw_uniform_positions`, but every centre lies at least
+    :data:`ARM_SHADOW_HALF_WIDTH_M` from x = 0 (in the overview camera's view).
+
+    Whole layouts are drawn until one qualifies, so the layout stays uniform over the
+    allowed ones.
+
+    Raises:
+        RuntimeError: no layout qualified in :data:`MAX_LAYOUT_DRAWS` draws.
+    """
+    for _ in range(MAX_LAYOUT_DRAWS):
+        spots = draw_uniform_positions(rng, radii_m, region_m, keep_clear, gap_m)
+        if all(abs(x) >= ARM_SHADOW_HALF_WIDTH_M for x, _ in spots):
+            return spots
+    raise RuntimeError(
+        f"no layout of objects of radii {list(radii_m)} m in {region_m} kept "
+        f"{ARM_SHADOW_HALF_WIDTH_M} m from x = 0 after {MAX_LAYOUT_DRAWS} draws."
+    )

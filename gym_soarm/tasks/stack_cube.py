@@ -19,7 +19,7 @@ complete, so the reward never falls as the task progresses.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
@@ -73,11 +73,6 @@ PAN_AXIS_XY_M: tuple[float, float] = (0.0, 0.1888)
 MIN_PAN_DISTANCE_M = 0.115
 """Closest a cube's centre starts to the pan axis: nearer, the arm cannot hold the jaws
 vertical as high as a cube carried over the other one, and the stack would tilt."""
-ARM_SHADOW_HALF_WIDTH_M = 0.05
-"""Objects start at least this far from the line x = 0: nearer, the arm's home pose hides
-them from the overview camera."""
-MAX_LAYOUT_DRAWS = 1000
-"""Whole layouts drawn before :func:`draw_beside_arm` gives up."""
 START_YAW_DEG: tuple[float, float] = (0.0, 90.0)
 """Range of the cubes' start yaws (a cube looks the same every quarter turn)."""
 
@@ -88,32 +83,6 @@ STACK_HEIGHT_TOL_M = 0.005
 # Share of the place term earned by carrying the held red cube over the blue one, and by a
 # red cube that sits on the blue one but is still held or moving; the release earns the rest.
 PLACE_ON_BLUE_CREDIT = 0.9
-
-
-def draw_beside_arm(
-    rng: np.random.Generator,
-    radii_m: Sequence[float],
-    region_m: tuple[tuple[float, float], tuple[float, float]],
-    keep_clear: Sequence[tuple[float, float, float]] = (),
-    gap_m: float = 0.01,
-) -> list[tuple[float, float]]:
-    """Like :func:`~gym_soarm.tasks.placement.draw_uniform_positions`, but every centre
-    lies at least :data:`ARM_SHADOW_HALF_WIDTH_M` from x = 0 (in the overview camera's view).
-
-    Whole layouts are drawn until one qualifies, so the layout stays uniform over the
-    allowed ones.
-
-    Raises:
-        RuntimeError: no layout qualified in :data:`MAX_LAYOUT_DRAWS` draws.
-    """
-    for _ in range(MAX_LAYOUT_DRAWS):
-        spots = placement.draw_uniform_positions(rng, radii_m, region_m, keep_clear, gap_m)
-        if all(abs(x) >= ARM_SHADOW_HALF_WIDTH_M for x, _ in spots):
-            return spots
-    raise RuntimeError(
-        f"no layout of objects of radii {list(radii_m)} m in {region_m} kept "
-        f"{ARM_SHADOW_HALF_WIDTH_M} m from x = 0 after {MAX_LAYOUT_DRAWS} draws."
-    )
 
 
 class StackCubeTask(Task):
@@ -140,7 +109,7 @@ class StackCubeTask(Task):
         # draw keeps footprint + disc radius + gap between centre and axis).
         footprint = max(item.footprint_radius_m for item in items)
         near_arm = (*PAN_AXIS_XY_M, MIN_PAN_DISTANCE_M - footprint - START_GAP_M)
-        spots = draw_beside_arm(
+        spots = placement.draw_beside_arm(
             rng,
             [item.footprint_radius_m for item in items],
             START_REGION_M,
