@@ -36,6 +36,10 @@ _Leaf = tuple[tuple[str, ...], tuple[int, ...], np.dtype]
 _live_vector_envs: weakref.WeakSet[SoArmVectorEnv] = weakref.WeakSet()
 
 
+TIME_LIMIT_ATTRIBUTE = "_max_episode_steps"
+"""What Gymnasium's ``TimeLimit`` calls the step limit; the vector env answers it."""
+
+
 def _close_live_vector_envs() -> None:
     """At interpreter exit: close every open vector env on its own threads.
 
@@ -472,9 +476,14 @@ class SoArmVectorEnv(VectorEnv):
     def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
         """Call ``name`` (a method, or read an attribute) of every environment on its thread.
 
+        ``_max_episode_steps`` answers the step limit, as a ``TimeLimit``-wrapped env
+        made by ``gym.make`` does (LeRobot's evaluation reads it this way).
+
         Returns:
             One result per environment, in order.
         """
+        if name == TIME_LIMIT_ATTRIBUTE:
+            return self.get_attr(name)
         results: list[Any] = [None] * self.num_envs
 
         def job(partition: list[int]) -> None:
@@ -487,6 +496,8 @@ class SoArmVectorEnv(VectorEnv):
 
     def get_attr(self, name: str) -> tuple[Any, ...]:
         """The attribute ``name`` of every environment, in order."""
+        if name == TIME_LIMIT_ATTRIBUTE:
+            return (self.max_episode_steps,) * self.num_envs
         return tuple(getattr(env, name) for env in self.envs)
 
     def set_attr(self, name: str, values: list[Any] | tuple[Any, ...] | Any) -> None:

@@ -21,9 +21,19 @@ from gym_soarm.data.record import (
     record,
 )
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
-from gym_soarm.tasks import task_names, task_spellings
+from gym_soarm.tasks import task_names
+from gym_soarm.tasks.suites import SUITE_NAMES, resolve_selection
 from gym_soarm.units import UNITS
 from gym_soarm.validation import parse_size
+
+
+def selection(text: str) -> str:
+    """argparse type of ``--task``: a task, a suite or a comma list, checked."""
+    try:
+        resolve_selection(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -33,12 +43,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--task",
-        choices=task_spellings(),
+        type=selection,
         default=DEFAULT_RECORD_TASK,
         metavar="TASK",
-        help=f"a task: {', '.join(task_names())} (default {DEFAULT_RECORD_TASK})",
+        help=f"a task ({', '.join(task_names())}), a suite ({', '.join(SUITE_NAMES)}) or a "
+        f"comma list of them: one dataset, --episodes of each task (default {DEFAULT_RECORD_TASK})",
     )
-    parser.add_argument("--episodes", type=int, default=10, help="episodes to keep (default 10)")
+    parser.add_argument(
+        "--episodes", type=int, default=10, help="episodes to keep per task (default 10)"
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the first attempt")
     parser.add_argument(
         "--repo-id",
@@ -166,9 +179,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(summary.text())
     if summary.interrupted:
         return 130
-    if summary.episodes < args.episodes:
+    wanted = args.episodes * len(summary.tasks)
+    if summary.episodes < wanted:
         print(
-            f"only {summary.episodes} of {args.episodes} episodes were kept after "
+            f"only {summary.episodes} of {wanted} episodes were kept after "
             f"{summary.attempts} attempts",
             file=sys.stderr,
         )

@@ -130,6 +130,7 @@ class OrderedMerger:
         max_attempts: attempts to make at most.
         bar: a tqdm progress bar to update, or None.
         label: the progress bar's note on where attempts run (e.g. ``"2 workers"``).
+        task: the task's name, for ``meta/variation.jsonl``.
     """
 
     def __init__(
@@ -140,8 +141,10 @@ class OrderedMerger:
         max_attempts: int,
         bar: Any = None,
         label: str = "",
+        task: str = "",
     ) -> None:
         self.writer = writer
+        self.task = task
         self.seed = seed
         self.episodes = episodes
         self.max_attempts = max_attempts
@@ -192,7 +195,7 @@ class OrderedMerger:
         self.successes += success
         if shard is not None:
             index = self.writer.import_episode(shard)
-            write_variation(self.writer.root, index, self.seed + attempt, drawn)
+            write_variation(self.writer.root, index, self.seed + attempt, drawn, self.task)
             shutil.rmtree(shard, ignore_errors=True)
             self.kept += 1
             if self.bar is not None:
@@ -236,7 +239,9 @@ def record_in_workers(
     context = _context(start_method)
     shard_root = writer.root / SCRATCH_DIR / "shards"
     shard_root.mkdir(parents=True, exist_ok=True)
-    merger = OrderedMerger(writer, plan.seed, episodes, max_attempts, bar, f"{workers} workers")
+    merger = OrderedMerger(
+        writer, plan.seed, episodes, max_attempts, bar, f"{workers} workers", plan.spec.name
+    )
     retry: list[int] = []  # attempts whose worker died, lowest first
     deaths: dict[int, int] = {}
     interrupted = False

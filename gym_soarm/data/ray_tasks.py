@@ -139,7 +139,9 @@ def record_with_ray(
     plan_ref = ray.put(plan)
     shard_root = writer.root / SCRATCH_DIR / "shards"
     shard_root.mkdir(parents=True, exist_ok=True)
-    merger = OrderedMerger(writer, plan.seed, episodes, max_attempts, bar, f"ray x{parallel}")
+    merger = OrderedMerger(
+        writer, plan.seed, episodes, max_attempts, bar, f"ray x{parallel}", plan.spec.name
+    )
     pending: list[Any] = []
     interrupted = False
 

@@ -45,6 +45,7 @@ from gym_soarm.control import CONTROL_MODES, action_names
 from gym_soarm.data import LeRobotDatasetWriter
 from gym_soarm.tasks import get_task, lift_cube
 from gym_soarm.tasks.base import TaskSpec
+from gym_soarm.tasks.suites import resolve_selection
 from gym_soarm.units import FEATURE_NAMES, joint_units
 from gym_soarm.validation import check_choice, check_int, parse_size, resolve_camera_config
 
@@ -89,6 +90,8 @@ class RecordSummary:
     seconds: float
     bytes_on_disk: int
     interrupted: bool = False
+    tasks: tuple[str, ...] = ()
+    """The recorded tasks, in recording order (``episodes`` of each were asked for)."""
 
     @property
     def success_rate(self) -> float:
@@ -215,12 +218,16 @@ def record_attempt(
 
 
 def write_variation(
-    root: str | os.PathLike[str], episode_index: int, seed: int, drawn: Mapping[str, Any] | None
+    root: str | os.PathLike[str],
+    episode_index: int,
+    seed: int,
+    drawn: Mapping[str, Any] | None,
+    task: str,
 ) -> None:
     """Append a kept episode's drawn variation to ``meta/variation.jsonl`` (if any)."""
     if drawn is None:
         return
-    line = {"episode_index": episode_index, "seed": seed, **drawn}
+    line = {"episode_index": episode_index, "task": task, "seed": seed, **drawn}
     with open(Path(root) / VARIATION_PATH, "a", encoding="utf-8") as out:
         out.write(json.dumps(line) + "\n")
 
@@ -252,9 +259,14 @@ def record(
 
     Args:
         root: the dataset folder (new or empty, or an old dataset with ``overwrite``).
-        task: a registered task's name (see :func:`gym_soarm.tasks.task_names`) or an
-            alias (``"lift"``).
-        episodes: episodes to keep in the dataset.
+        task: a registered task's name (see :func:`gym_soarm.tasks.task_names`), an
+            alias (``"lift"``), a suite (``"soarm_core"``) or a comma list of them (see
+            :mod:`gym_soarm.tasks.suites`). Several tasks go into one dataset, one task
+            after the other, each episode with its own instruction; a suite's settings
+            (``soarm_robust``'s randomisation) override ``variation``. Without cameras
+            the tasks must share one environment-state layout.
+        episodes: episodes to keep per task. Task ``i``'s attempt ``k`` resets with
+            ``seed + k``, as a recording of that task alone would.
         seed: seed of the first attempt.
         camera_config: ``"front_only"``, ``"front_wrist"``, ``"all"``, camera names, or
             ``"none"`` (no video; ``observation.environment_state`` is recorded instead).
@@ -291,9 +303,7 @@ def record(
         ValueError: a bad argument; nothing is written then.
         TypeError: ``wrist_roll_offset_deg`` is not a number; nothing is written then.
     """
-    from gym_soarm.expert import make_expert
-
-    spec = get_task(task)
+    selected = _selected_tasks(task)
     episodes = check_int("episodes", episodes, 1)
     seed = check_int("seed", seed, 0)
     joint_units(units, wrist_roll_offset_deg)  # checks units and the offset
@@ -327,99 +337,85 @@ def record(
         raise ValueError(
             f"variation takes the keywords {', '.join(VARIATION_KEYWORDS)}; got {unknown}."
         )
-    env_kwargs: dict[str, Any] = {
-        **variation,
+    common_kwargs: dict[str, Any] = {
         "units": units,
         "wrist_roll_offset_deg": wrist_roll_offset_deg,
         "control_mode": control_mode,
     }
     if state_only:
-        env_kwargs["obs_type"] = "environment_state_agent_pos"
+        common_kwargs["obs_type"] = "environment_state_agent_pos"
     else:
-        env_kwargs.update(
+        common_kwargs.update(
             obs_type="pixels_agent_pos",
             camera_config=list(cameras),
             observation_height=height,
             observation_width=width,
         )
     started = time.perf_counter()
-    env = gym.make(spec.env_id, **env_kwargs)
-    try:
-        state_names = env.unwrapped.state_names if state_only else None
-        features = dataset_features(cameras, height, width, state_names, control_mode)
-        robot_type = "gym_soarm" if units == "radians" else "so101_follower"
-        writer = LeRobotDatasetWriter.create(
-            root, FPS, features, robot_type=robot_type, overwrite=overwrite
+    # Every task's environment is built (and checked) before anything is written.
+    plans: list[AttemptPlan] = []
+    state_names: dict[str, tuple[str, ...]] = {}
+    robot_type = "gym_soarm" if units == "radians" else "so101_follower"
+    for spec, suite_variation in selected:
+        env_kwargs = {**variation, **suite_variation, **common_kwargs}
+        env = gym.make(spec.env_id, **env_kwargs)
+        try:
+            if state_only:
+                state_names[spec.name] = tuple(env.unwrapped.state_names)
+        finally:
+            env.close()
+        plans.append(
+            AttemptPlan(
+                spec=spec,
+                env_kwargs=env_kwargs,
+                features={},
+                robot_type=robot_type,
+                seed=seed,
+                dart_noise=float(dart_noise),
+                keep=keep,
+                units=units,
+                wrist_roll_offset_deg=wrist_roll_offset_deg,
+                cameras=tuple(cameras),
+                state_only=state_only,
+            )
         )
-    except BaseException:
-        env.close()
-        raise
-    plan = AttemptPlan(
-        spec=spec,
-        env_kwargs=env_kwargs,
-        features=features,
-        robot_type=robot_type,
-        seed=seed,
-        dart_noise=float(dart_noise),
-        keep=keep,
-        units=units,
-        wrist_roll_offset_deg=wrist_roll_offset_deg,
-        cameras=tuple(cameras),
-        state_only=state_only,
+    if len(set(state_names.values())) > 1:
+        listed = ", ".join(f"{name} ({len(names)} values)" for name, names in state_names.items())
+        raise ValueError(
+            "a dataset without cameras records observation.environment_state, whose layout "
+            f"differs between the selected tasks: {listed}. Record these tasks with cameras "
+            "(--camera-config front_wrist), or one task per dataset."
+        )
+    names = next(iter(state_names.values())) if state_only else None
+    features = dataset_features(cameras, height, width, names, control_mode)
+    plans = [dataclasses.replace(plan, features=features) for plan in plans]
+    writer = LeRobotDatasetWriter.create(
+        root, FPS, features, robot_type=robot_type, overwrite=overwrite
     )
-    kept = attempts = successes = 0
+    attempts = successes = 0
     interrupted = False
     bar = None
     try:
         if progress:
             from tqdm import tqdm
 
-            bar = tqdm(total=episodes, unit="episode", file=sys.stderr, dynamic_ncols=True)
-        if ray_address is not None:
-            env.close()
-            from gym_soarm.data.ray_tasks import record_with_ray
-
-            outcome = record_with_ray(
-                writer,
-                plan,
-                episodes,
-                max_attempts,
-                ray_address,
-                parallel=workers if workers > 1 else None,
-                bar=bar,
+            bar = tqdm(
+                total=episodes * len(plans), unit="episode", file=sys.stderr, dynamic_ncols=True
             )
-            attempts, successes, interrupted = outcome
-        elif workers > 1:
-            env.close()
-            from gym_soarm.data.parallel import record_in_workers
-
-            outcome = record_in_workers(
-                writer, plan, episodes, max_attempts, workers, start_method, bar
+        for plan in plans:
+            if bar is not None and len(plans) > 1:
+                bar.set_description(plan.spec.name)
+            outcome = _record_task(
+                root, writer, plan, episodes, max_attempts, workers, start_method, ray_address, bar
             )
-            attempts, successes, interrupted = outcome
-        else:
-            expert = make_expert(env)
-            try:
-                while kept < episodes and attempts < max_attempts:
-                    success, drawn = record_attempt(env, expert, writer, plan, attempts)
-                    attempts += 1
-                    successes += success
-                    if success or keep == "all":
-                        index = writer.save_episode()
-                        write_variation(root, index, seed + attempts - 1, drawn)
-                        kept += 1
-                        if bar is not None:
-                            bar.update(1)
-                    else:
-                        writer.clear_episode_buffer()
-                    if bar is not None:
-                        bar.set_postfix(success=f"{successes}/{attempts}", frames=writer.num_frames)
-            except KeyboardInterrupt:
+            attempts += outcome[0]
+            successes += outcome[1]
+            if outcome[2]:
                 interrupted = True
+                break
     finally:
         if bar is not None:
             bar.close()
-        env.close()
         writer.finalize()
     seconds = time.perf_counter() - started
     size_bytes = sum(p.stat().st_size for p in Path(root).rglob("*") if p.is_file())
@@ -432,7 +428,74 @@ def record(
         seconds=seconds,
         bytes_on_disk=size_bytes,
         interrupted=interrupted,
+        tasks=tuple(plan.spec.name for plan in plans),
     )
+
+
+def _selected_tasks(task: str) -> list[tuple[TaskSpec, Mapping[str, Any]]]:
+    """The distinct (task, suite settings) pairs of a selection, in order."""
+    pairs: list[tuple[TaskSpec, Mapping[str, Any]]] = []
+    for item in resolve_selection(task):
+        pair = (get_task(item.task), dict(item.variation))
+        if pair not in pairs:
+            pairs.append(pair)
+    return pairs
+
+
+def _record_task(
+    root: str | os.PathLike[str],
+    writer: LeRobotDatasetWriter,
+    plan: AttemptPlan,
+    episodes: int,
+    max_attempts: int,
+    workers: int,
+    start_method: str | None,
+    ray_address: str | None,
+    bar: Any,
+) -> tuple[int, int, bool]:
+    """Record one task's episodes into ``writer``: (attempts, successes, interrupted)."""
+    if ray_address is not None:
+        from gym_soarm.data.ray_tasks import record_with_ray
+
+        return record_with_ray(
+            writer,
+            plan,
+            episodes,
+            max_attempts,
+            ray_address,
+            parallel=workers if workers > 1 else None,
+            bar=bar,
+        )
+    if workers > 1:
+        from gym_soarm.data.parallel import record_in_workers
+
+        return record_in_workers(writer, plan, episodes, max_attempts, workers, start_method, bar)
+
+    from gym_soarm.expert import make_expert
+
+    kept = attempts = successes = 0
+    env = gym.make(plan.spec.env_id, **plan.env_kwargs)
+    try:
+        expert = make_expert(env)
+        while kept < episodes and attempts < max_attempts:
+            success, drawn = record_attempt(env, expert, writer, plan, attempts)
+            attempts += 1
+            successes += success
+            if success or plan.keep == "all":
+                index = writer.save_episode()
+                write_variation(root, index, plan.seed + attempts - 1, drawn, plan.spec.name)
+                kept += 1
+                if bar is not None:
+                    bar.update(1)
+            else:
+                writer.clear_episode_buffer()
+            if bar is not None:
+                bar.set_postfix(success=f"{successes}/{attempts}", frames=writer.num_frames)
+    except KeyboardInterrupt:
+        return attempts, successes, True
+    finally:
+        env.close()
+    return attempts, successes, False
 
 
 if __name__ == "__main__":

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import gymnasium as gym
 from lerobot.configs.types import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
 
@@ -14,6 +15,7 @@ from gym_soarm.control import CONTROL_MODES
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
 from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.distractors import MAX_DISTRACTORS
+from gym_soarm.tasks.suites import TASK_GROUP, SelectedTask, resolve_selection
 from gym_soarm.units import UNITS, check_wrist_roll_offset
 from gym_soarm.validation import check_choice, check_int, parse_cameras
 
@@ -22,6 +24,8 @@ OBS_STATE = "observation.state"
 OBS_ENV_STATE = "observation.environment_state"
 OBS_IMAGES = "observation.images"
 OBS_TYPES: tuple[str, ...] = ("pixels_agent_pos", "environment_state_agent_pos", "pixels")
+VECTOR_ENVS: tuple[str, ...] = ("auto", "native", "async", "sync")
+"""Values of ``vector_env``: how ``create_envs`` batches ``n_envs`` environments."""
 
 
 def check_task(task: object) -> str:
@@ -29,19 +33,44 @@ def check_task(task: object) -> str:
     return get_task(task).name
 
 
+def check_selection(task: object) -> str:
+    """``task`` as the config keeps it: one task's registered name, or the selection.
+
+    Raises:
+        ValueError: an unknown task or suite (see
+            :func:`gym_soarm.tasks.suites.resolve_selection`).
+    """
+    selected = resolve_selection(task)  # type: ignore[arg-type]
+    parts = [part.strip() for part in str(task).split(",") if part.strip()]
+    if len(parts) == 1 and selected[0].group == TASK_GROUP:
+        return selected[0].task
+    return ",".join(parts)
+
+
 @EnvConfig.register_subclass("soarm")
 @dataclass
 class SoArmEnvConfig(EnvConfig):
     """gym_soarm's SO-101 tasks for LeRobot (``--env.type=soarm``).
 
-    The gym id is ``gym_soarm/<task>``. Observations reach policies as
+    ``task`` is one task, a suite or a comma list of both (see
+    :mod:`gym_soarm.tasks.suites`): ``create_envs`` returns
+    ``{group: {task_index: VectorEnv}}``, one group per suite (``soarm_core`` ...) and
+    the group ``"soarm"`` for tasks named one by one, so ``lerobot-eval`` reports success
+    per task, per suite and overall. Evaluate on the protocol: episode ``k`` resets with
+    seed ``EVAL_SEED + k`` (1000 + k, ``lerobot-eval``'s default ``--seed``).
+
+    The gym id of a task is ``gym_soarm/<task>``. Observations reach policies as
     ``observation.state`` (the six joints, in ``units``), ``observation.images.<camera>``
     per camera and, for ``obs_type="environment_state_agent_pos"``,
     ``observation.environment_state`` (the task's layout, read from the task itself:
     ``env.unwrapped.state_layout``). ``obs_type="pixels"`` gives policies the cameras only.
 
     Attributes:
-        task: a registered task (``gym_soarm.task_names()``), e.g. ``"LiftCube-v0"``.
+        task: a registered task (``gym_soarm.task_names()``), e.g. ``"LiftCube-v0"``, a
+            suite (``"soarm_core"``, ``"soarm_multi"``, ``"soarm_language"``,
+            ``"soarm_robust"``, ``"soarm_all"``) or a comma list of them. With
+            ``obs_type="environment_state_agent_pos"`` every selected task must have the
+            same state layout (one policy reads them all).
         fps: control rate (the environment steps at 50 Hz).
         episode_length: step limit; ``None`` keeps the task's registered one.
         obs_type: ``"pixels_agent_pos"``, ``"environment_state_agent_pos"`` or ``"pixels"``.
@@ -63,6 +92,15 @@ class SoArmEnvConfig(EnvConfig):
         control_mode: what the policy's action means: ``"joint_pos"``,
             ``"joint_delta"``, ``"ee_delta"`` or ``"ee_pose"`` (see
             :mod:`gym_soarm.control`); six values in every mode.
+        vector_env: how ``create_envs`` batches ``n_envs`` environments: ``"native"``
+            (gym_soarm's threaded vector env, :class:`gym_soarm.vector.SoArmVectorEnv`),
+            ``"async"`` (Gymnasium's ``AsyncVectorEnv``, one process per environment),
+            ``"sync"`` (``SyncVectorEnv``), or ``"auto"`` (default): native for more
+            than one environment, where it is the fastest (README, "Vector
+            environments"), sync for one.
+
+    A suite's own settings (``soarm_robust``'s randomisation) override the fields above
+    for its tasks.
     """
 
     task: str | None = DEFAULT_TASK
@@ -82,11 +120,13 @@ class SoArmEnvConfig(EnvConfig):
     object_placement: str | None = None
     distractors: int = 0
     control_mode: str = "joint_pos"
+    vector_env: str = "auto"
     features: dict[str, PolicyFeature] = field(default_factory=dict)
     features_map: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        self.task = check_task(self.task)
+        self.task = check_selection(self.task)
+        selected = resolve_selection(self.task)
         if self.obs_type not in OBS_TYPES:
             raise ValueError(
                 f"obs_type must be one of {', '.join(OBS_TYPES)}; got {self.obs_type!r}."
@@ -98,9 +138,13 @@ class SoArmEnvConfig(EnvConfig):
         check_choice("physics_randomization", self.physics_randomization, LEVELS)
         check_choice("servo_model", self.servo_model, SERVO_MODELS)
         check_choice("object_placement", self.object_placement, ("grid", "uniform"), none_ok=True)
-        get_task(self.task).make_task(self.object_placement)  # refuses an unsupported placement
+        for item in selected:  # refuses a placement that a task does not support
+            get_task(item.task).make_task(
+                item.variation.get("object_placement", self.object_placement)
+            )
         self.distractors = check_int("distractors", self.distractors, 0, MAX_DISTRACTORS)
         check_choice("control_mode", self.control_mode, CONTROL_MODES)
+        check_choice("vector_env", self.vector_env, VECTOR_ENVS)
         cameras = parse_cameras(self.camera_config)
         n_joints = len(constants.JOINT_NAMES)
         features: dict[str, PolicyFeature] = {
@@ -111,9 +155,8 @@ class SoArmEnvConfig(EnvConfig):
             features["agent_pos"] = PolicyFeature(type=FeatureType.STATE, shape=(n_joints,))
             features_map["agent_pos"] = OBS_STATE
         if self.obs_type == "environment_state_agent_pos":
-            layout = get_task(self.task).make_task(self.object_placement).state_layout
             features["environment_state"] = PolicyFeature(
-                type=FeatureType.ENV, shape=(sum(size for _, size in layout),)
+                type=FeatureType.ENV, shape=(self._environment_state_size(selected),)
             )
             features_map["environment_state"] = OBS_ENV_STATE
         else:
@@ -151,3 +194,87 @@ class SoArmEnvConfig(EnvConfig):
         if self.episode_length is not None:
             kwargs["max_episode_steps"] = self.episode_length
         return kwargs
+
+    @property
+    def gym_id(self) -> str:
+        """The gym id of the selection's first task (``create_envs`` makes every task's)."""
+        return get_task(resolve_selection(self.task)[0].task).env_id
+
+    def create_envs(
+        self, n_envs: int, use_async_envs: bool = False
+    ) -> dict[str, dict[int, gym.vector.VectorEnv]]:
+        """``{group: {task_index: VectorEnv}}`` of ``n_envs`` environments per selected task.
+
+        ``use_async_envs`` (``lerobot-eval --eval.use_async_envs``) chooses
+        ``AsyncVectorEnv`` only when ``vector_env="async"`` or when
+        ``vector_env="auto"`` falls back to Gymnasium's vector envs, which it does not
+        for gym_soarm's own tasks: their native vector env is faster (threads share
+        one process, no pipes).
+        """
+        n_envs = check_int("n_envs", n_envs, 1)
+        envs: dict[str, dict[int, gym.vector.VectorEnv]] = {}
+        built: list[gym.vector.VectorEnv] = []
+        try:
+            for item in resolve_selection(self.task):
+                vector = self._vector_env(item, n_envs, use_async_envs)
+                built.append(vector)
+                envs.setdefault(item.group, {})[item.index] = vector
+        except BaseException:
+            for vector in built:
+                vector.close()
+            raise
+        return envs
+
+    def task_kwargs(self, item: SelectedTask) -> dict[str, Any]:
+        """The ``gym.make`` keywords of one selected task: the fields, then its suite's."""
+        return {**self.gym_kwargs, **item.variation}
+
+    def _vector_env(
+        self, item: SelectedTask, n_envs: int, use_async_envs: bool
+    ) -> gym.vector.VectorEnv:
+        env_id = get_task(item.task).env_id
+        kwargs = self.task_kwargs(item)
+        mode = self.vector_env
+        if mode == "auto":
+            mode = "native" if n_envs > 1 else "sync"
+        if mode == "native":
+            return gym.make_vec(
+                env_id,
+                num_envs=n_envs,
+                vectorization_mode="vector_entry_point",
+                autoreset_mode=gym.vector.AutoresetMode.SAME_STEP,
+                **kwargs,
+            )
+        disable_checker = self.disable_env_checker
+
+        def make_one() -> gym.Env:
+            return gym.make(env_id, disable_env_checker=disable_checker, **kwargs)
+
+        if mode == "async" and n_envs > 1:
+            return gym.vector.AsyncVectorEnv(
+                [make_one] * n_envs,
+                autoreset_mode=gym.vector.AutoresetMode.SAME_STEP,
+                context="forkserver",
+            )
+        return gym.vector.SyncVectorEnv(
+            [make_one] * n_envs, autoreset_mode=gym.vector.AutoresetMode.SAME_STEP
+        )
+
+    def _environment_state_size(self, selected: tuple[SelectedTask, ...]) -> int:
+        sizes: dict[str, int] = {}
+        for item in selected:
+            layout = (
+                get_task(item.task)
+                .make_task(item.variation.get("object_placement", self.object_placement))
+                .state_layout
+            )
+            sizes[item.task] = sum(size for _, size in layout)
+        if len(set(sizes.values())) > 1:
+            listed = ", ".join(f"{task} {size}" for task, size in sizes.items())
+            raise ValueError(
+                "obs_type='environment_state_agent_pos' needs one environment-state size "
+                f"for every selected task; {self.task!r} has {listed} values. Evaluate "
+                "state policies one task at a time (--env.task=LiftCube-v0), or use "
+                "obs_type='pixels_agent_pos'."
+            )
+        return next(iter(sizes.values()))
