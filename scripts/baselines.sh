@@ -40,6 +40,7 @@ for task in $TASKS; do
     t2=$(date +%s)
     lerobot-eval --env.type=soarm --env.task="$task" \
         --env.obs_type=environment_state_agent_pos \
+        --env.observation_height=240 --env.observation_width=320 \
         --policy.path="$train/checkpoints/last/pretrained_model" --policy.device=cpu \
         --eval.n_episodes="$EVAL_EPISODES" --eval.batch_size=10 \
         --output_dir="$eval_dir" > "$OUT/eval_$name.log" 2>&1

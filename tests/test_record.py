@@ -228,7 +228,7 @@ def test_camera_recording(tmp_path):
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"task": "Lift"}, "task must be one of"),
+        ({"task": "Lift"}, "task must be a task"),
         ({"episodes": 0}, "episodes must be an int >= 1"),
         ({"units": "deg"}, "units must be one of"),
         ({"units": "radians", "wrist_roll_offset_deg": 90}, "applies to LeRobot's units"),
