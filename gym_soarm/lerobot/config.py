@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -45,6 +46,11 @@ def check_selection(task: object) -> str:
     if len(parts) == 1 and selected[0].group == TASK_GROUP:
         return selected[0].task
     return ",".join(parts)
+
+
+def make_task_env(env_id: str, disable_env_checker: bool, kwargs: dict[str, Any]) -> gym.Env:
+    """``gym.make(env_id, **kwargs)``: one environment of a Gymnasium vector env."""
+    return gym.make(env_id, disable_env_checker=disable_env_checker, **kwargs)
 
 
 @EnvConfig.register_subclass("soarm")
@@ -245,11 +251,8 @@ class SoArmEnvConfig(EnvConfig):
                 autoreset_mode=gym.vector.AutoresetMode.SAME_STEP,
                 **kwargs,
             )
-        disable_checker = self.disable_env_checker
-
-        def make_one() -> gym.Env:
-            return gym.make(env_id, disable_env_checker=disable_checker, **kwargs)
-
+        # A module-level function, so that worker processes import gym_soarm (and its ids).
+        make_one = functools.partial(make_task_env, env_id, self.disable_env_checker, kwargs)
         if mode == "async" and n_envs > 1:
             return gym.vector.AsyncVectorEnv(
                 [make_one] * n_envs,
