@@ -231,7 +231,8 @@ class JointDeltaControl(ControlMode):
     def __init__(self, units: JointUnits, low_rad: np.ndarray, high_rad: np.ndarray) -> None:
         super().__init__(units, low_rad, high_rad)
         # Only the scale applies to a change; offsets (and the wrist_roll offset) cancel.
-        self._limit = JOINT_DELTA_LIMIT_RAD * units.scale
+        # abs: a calibrated joint read in mirrored degrees has a negative scale.
+        self._limit = JOINT_DELTA_LIMIT_RAD * np.abs(units.scale)
         self.action_space = self._box(-self._limit, self._limit)
         self.description = (
             f"six changes of the servo targets per step ({', '.join(constants.JOINT_NAMES)}) "

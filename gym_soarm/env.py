@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import math
+import os
 import reprlib
 import warnings
 from collections import OrderedDict
@@ -116,6 +117,10 @@ class SoArmEnv(gym.Env):
         wrist_roll_offset_deg: with LeRobot units, the real arm's wrist_roll reading
             (degrees, -180 to 180) when the model's wrist_roll is at 0 rad; wrist_roll
             values are shifted by it and wrapped to a turn (see :mod:`gym_soarm.units`).
+        calibration: with LeRobot units, the path of a real SO-101 follower's LeRobot
+            calibration JSON: actions, ``agent_pos`` and their bounds are then that arm's
+            values, as LeRobot's motor bus normalises them (see
+            :mod:`gym_soarm.calibration`). None: the fixed maps of :mod:`gym_soarm.units`.
         image_modalities: images of each camera in pixel observations: a tuple of
             ``"rgb"``, ``"depth"`` and ``"segmentation"`` (see above); only these are
             rendered.
@@ -159,6 +164,7 @@ class SoArmEnv(gym.Env):
         object_placement: str | None = None,
         distractors: int = 0,
         control_mode: str = "joint_pos",
+        calibration: str | os.PathLike[str] | None = None,
     ) -> None:
         # Validate every argument before building anything.
         spec = get_task(task)
@@ -172,6 +178,7 @@ class SoArmEnv(gym.Env):
         check_choice("reward_type", reward_type, REWARD_TYPES)
         check_choice("units", units, UNITS)
         wrist_roll_offset_deg = check_wrist_roll_offset(units, wrist_roll_offset_deg)
+        joint_conversion = joint_units(units, wrist_roll_offset_deg, calibration)  # reads the file
         modalities = check_subset("image_modalities", image_modalities, IMAGE_MODALITIES)
         check_choice("visual_randomization", visual_randomization, LEVELS)
         check_choice("physics_randomization", physics_randomization, LEVELS)
@@ -193,7 +200,8 @@ class SoArmEnv(gym.Env):
         self.units = units
         self.wrist_roll_offset_deg = wrist_roll_offset_deg
         self.control_mode = control_mode
-        self._units = joint_units(units, wrist_roll_offset_deg)
+        self.calibration = None if calibration is None else os.fspath(calibration)
+        self._units = joint_conversion
         self.image_modalities = modalities
         self._rgb = "rgb" in modalities
         self._depth = "depth" in modalities

@@ -38,6 +38,7 @@ Only numpy is used here: no LeRobot, no torch.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -84,7 +85,8 @@ class JointUnits:
 
     Attributes:
         name: one of :data:`UNITS`.
-        scale: per-joint factor, shape (6,), all positive.
+        scale: per-joint factor, shape (6,), all positive (but a calibrated arm's
+            joint with drive_mode 1 in degrees, see :mod:`gym_soarm.calibration`).
         offset: per-joint offset, shape (6,).
         wrist_roll_offset_rad: the real arm's wrist_roll reading, in radians, when the
             model's wrist_roll is at 0 rad.
@@ -198,23 +200,34 @@ def check_wrist_roll_offset(units: str, wrist_roll_offset_deg: object) -> float:
     return offset
 
 
-def joint_units(units: str, wrist_roll_offset_deg: float = 0.0) -> JointUnits:
+def joint_units(
+    units: str,
+    wrist_roll_offset_deg: float = 0.0,
+    calibration: str | os.PathLike[str] | None = None,
+) -> JointUnits:
     """The conversion of ``units`` (one of :data:`UNITS`).
 
     Args:
         units: one of :data:`UNITS`.
         wrist_roll_offset_deg: the real arm's wrist_roll reading (degrees, -180..180)
             when the model's wrist_roll is at 0 rad; LeRobot units only.
+        calibration: a LeRobot SO-101 follower calibration file: the LeRobot units of
+            that arm instead of the fixed maps here (see :mod:`gym_soarm.calibration`).
 
     Raises:
-        ValueError: ``units`` is not one of :data:`UNITS`, or the offset is invalid
-            (see :func:`check_wrist_roll_offset`).
-        TypeError: the offset is not a real number.
+        ValueError: ``units`` is not one of :data:`UNITS`, the offset is invalid (see
+            :func:`check_wrist_roll_offset`), or the calibration file is missing or
+            malformed, or comes with ``units="radians"``.
+        TypeError: the offset is not a real number, or ``calibration`` not a path.
     """
     if not isinstance(units, str) or units not in _TABLE:
         raise ValueError(
             f"units must be one of {', '.join(repr(u) for u in UNITS)}; got {units!r}."
         )
+    if calibration is not None:
+        from gym_soarm.calibration import calibrated_units
+
+        return calibrated_units(units, calibration, wrist_roll_offset_deg)
     offset = check_wrist_roll_offset(units, wrist_roll_offset_deg)
     if not offset:
         return _TABLE[units]

@@ -82,6 +82,13 @@ def build_parser() -> argparse.ArgumentParser:
         "0 rad, e.g. -90 (default 0)",
     )
     parser.add_argument(
+        "--calibration",
+        default=None,
+        metavar="PATH",
+        help="with LeRobot units: a real SO-101 follower's LeRobot calibration JSON; states "
+        "and actions are then that arm's values",
+    )
+    parser.add_argument(
         "--control-mode",
         choices=CONTROL_MODES,
         default="joint_pos",
@@ -173,6 +180,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "distractors": args.distractors,
             },
             control_mode=args.control_mode,
+            calibration=args.calibration,
         )
     except (ValueError, TypeError, FileExistsError, ImportError) as exc:
         parser.error(str(exc))

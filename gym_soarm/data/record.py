@@ -251,6 +251,7 @@ def record(
     ray_address: str | None = None,
     variation: Mapping[str, Any] | None = None,
     control_mode: str = "joint_pos",
+    calibration: str | os.PathLike[str] | None = None,
 ) -> RecordSummary:
     """Record ``episodes`` episodes of the scripted expert into a dataset folder.
 
@@ -298,6 +299,9 @@ def record(
             is written to ``meta/variation.jsonl``, one line per episode.
         control_mode: the environment's control mode (one of
             :data:`gym_soarm.control.CONTROL_MODES`): what the recorded ``action`` holds.
+        calibration: with LeRobot units, a real SO-101 follower's LeRobot calibration
+            JSON: states and actions are then that arm's values (see
+            :mod:`gym_soarm.calibration`).
 
     Raises:
         ValueError: a bad argument; nothing is written then.
@@ -306,7 +310,7 @@ def record(
     selected = _selected_tasks(task)
     episodes = check_int("episodes", episodes, 1)
     seed = check_int("seed", seed, 0)
-    joint_units(units, wrist_roll_offset_deg)  # checks units and the offset
+    joint_units(units, wrist_roll_offset_deg, calibration)  # checks units, offset, file
     check_choice("control_mode", control_mode, CONTROL_MODES)
     if keep not in KEEP_CHOICES:
         raise ValueError(f"keep must be one of {', '.join(KEEP_CHOICES)}; got {keep!r}.")
@@ -342,6 +346,8 @@ def record(
         "wrist_roll_offset_deg": wrist_roll_offset_deg,
         "control_mode": control_mode,
     }
+    if calibration is not None:
+        env_kwargs["calibration"] = os.fspath(calibration)
     if state_only:
         common_kwargs["obs_type"] = "environment_state_agent_pos"
     else:

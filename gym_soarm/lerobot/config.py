@@ -17,7 +17,7 @@ from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
 from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.distractors import MAX_DISTRACTORS
 from gym_soarm.tasks.suites import TASK_GROUP, SelectedTask, resolve_selection
-from gym_soarm.units import UNITS, check_wrist_roll_offset
+from gym_soarm.units import UNITS, check_wrist_roll_offset, joint_units
 from gym_soarm.validation import check_choice, check_int, parse_cameras
 
 ACTION = "action"
@@ -104,6 +104,9 @@ class SoArmEnvConfig(EnvConfig):
             ``"sync"`` (``SyncVectorEnv``), or ``"auto"`` (default): native for more
             than one environment, where it is the fastest (README, "Vector
             environments"), sync for one.
+        calibration: with LeRobot units, the path of a real SO-101 follower's
+            calibration JSON, so the env speaks that arm's values (see
+            :mod:`gym_soarm.calibration`); None for the fixed maps.
 
     A suite's own settings (``soarm_robust``'s randomisation) override the fields above
     for its tasks.
@@ -127,6 +130,7 @@ class SoArmEnvConfig(EnvConfig):
     distractors: int = 0
     control_mode: str = "joint_pos"
     vector_env: str = "auto"
+    calibration: str | None = None
     features: dict[str, PolicyFeature] = field(default_factory=dict)
     features_map: dict[str, str] = field(default_factory=dict)
 
@@ -151,6 +155,8 @@ class SoArmEnvConfig(EnvConfig):
         self.distractors = check_int("distractors", self.distractors, 0, MAX_DISTRACTORS)
         check_choice("control_mode", self.control_mode, CONTROL_MODES)
         check_choice("vector_env", self.vector_env, VECTOR_ENVS)
+        if self.calibration is not None:  # reads and checks the file
+            joint_units(self.units, self.wrist_roll_offset_deg, self.calibration)
         cameras = parse_cameras(self.camera_config)
         n_joints = len(constants.JOINT_NAMES)
         features: dict[str, PolicyFeature] = {
@@ -199,6 +205,8 @@ class SoArmEnvConfig(EnvConfig):
         }
         if self.episode_length is not None:
             kwargs["max_episode_steps"] = self.episode_length
+        if self.calibration is not None:
+            kwargs["calibration"] = self.calibration
         return kwargs
 
     @property
