@@ -1,0 +1,108 @@
+"""``python -m gym_soarm.replay``: drive the simulation with a LeRobot SO-101 dataset's actions.
+
+The replay itself is :func:`gym_soarm.data.replay.replay`; this module parses the command
+line, prints the per-joint tracking error and writes the JSON and the plot.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from gym_soarm.data.replay import REPLAY_TASK, plot_replay, replay
+from gym_soarm.tasks import task_names, task_spellings
+from gym_soarm.units import UNITS
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m gym_soarm.replay",
+        description="Replay a LeRobot SO-101 dataset's actions in the simulation and report, "
+        "per joint, the error between the simulated and the recorded observation.state.",
+    )
+    parser.add_argument("--root", required=True, help="the dataset folder (holds meta/info.json)")
+    parser.add_argument(
+        "--episode",
+        type=int,
+        action="append",
+        default=None,
+        metavar="K",
+        help="an episode index to replay; repeat for several (default: every episode)",
+    )
+    parser.add_argument(
+        "--units",
+        choices=UNITS,
+        default=None,
+        help="the dataset's joint units (default: from robot_type: gym_soarm = radians, "
+        "else lerobot; use lerobot_range for LeRobot's older -100..100 datasets)",
+    )
+    parser.add_argument(
+        "--calibration",
+        default=None,
+        metavar="PATH",
+        help="the recording arm's LeRobot calibration JSON (LeRobot units)",
+    )
+    parser.add_argument(
+        "--wrist-roll-offset-deg",
+        type=float,
+        default=0.0,
+        metavar="DEG",
+        help="the arm's wrist_roll reading when the model's is at 0 rad (default 0)",
+    )
+    parser.add_argument(
+        "--task",
+        choices=task_spellings(),
+        default=REPLAY_TASK,
+        metavar="TASK",
+        help=f"the scene: {', '.join(task_names())} (default {REPLAY_TASK}: no object "
+        "in the way); give the recorded task to replay gym_soarm recordings",
+    )
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="episode K resets the scene with SEED + K, as the recorder did (default 0)",
+    )
+    parser.add_argument("--json", default=None, metavar="PATH", help="write the figures as JSON")
+    parser.add_argument(
+        "--plot", default=None, metavar="PATH.png", help="draw recorded vs simulated joints"
+    )
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point; returns the process exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.plot is not None and not args.plot.lower().endswith(".png"):
+        parser.error(f"--plot must name a .png file; got {args.plot!r}.")
+    try:
+        report = replay(
+            args.root,
+            episodes=args.episode,
+            units=args.units,
+            calibration=args.calibration,
+            wrist_roll_offset_deg=args.wrist_roll_offset_deg,
+            task=args.task,
+            seed=args.seed,
+        )
+    except (ValueError, TypeError, ImportError) as exc:
+        parser.error(str(exc))
+    print(report.table())
+    if args.json is not None:
+        Path(args.json).write_text(json.dumps(report.to_json(), indent=2) + "\n")
+        print(f"figures written to {args.json}")
+    if args.plot is not None:
+        try:
+            plot_replay(report, args.plot)
+        except ValueError as exc:
+            parser.error(str(exc))
+        print(f"plot written to {args.plot}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,438 @@
+"""Replaying a LeRobot SO-101 dataset's actions in the simulation, and how well it tracks.
+
+:func:`replay` reads a LeRobotDataset v3.0 folder (written by the real follower with
+``lerobot-record``, by LeRobot's ``LeRobotDataset`` API or by ``python -m gym_soarm.record``)
+with pyarrow alone, no LeRobot and no torch. Per episode it places the simulated arm at
+the episode's first recorded ``observation.state``, sends the recorded ``action`` frame by
+frame as joint targets, and compares the simulated ``agent_pos`` with the recorded
+``observation.state`` of the following frames: the tracking error per joint, in the
+dataset's units.
+
+**What the dataset must hold.** ``action`` and ``observation.state``, six values each
+named as LeRobot's SO-101 follower names them (``shoulder_pan.pos`` ... ``gripper.pos``):
+absolute joint targets, as ``lerobot-record`` and the recorder's default
+``control_mode="joint_pos"`` write them.
+
+**Units.** ``robot_type`` ``"gym_soarm"`` means radians (the recorder's ``--units
+radians``); any other means LeRobot's units, degrees by default (``"lerobot"``, the
+follower's default since LeRobot 0.4.4). Datasets recorded in LeRobot's older -100..100
+convention need ``units="lerobot_range"``; a real arm's calibration file
+(``calibration``, see :mod:`gym_soarm.calibration`) and ``wrist_roll_offset_deg`` apply
+as in ``gym.make``.
+
+**Time.** The simulation steps at 50 Hz. At another frame rate each 20 ms step sends the
+action of the frame in force at the step's start (the follower, too, holds its last goal
+until the next), and the simulated joints are interpolated linearly to each recorded
+frame's time (``frame / fps``). At 50 fps every frame is one step and nothing is
+interpolated.
+
+**The scene.** :data:`REPLAY_TASK` by default: the arm and a target ball that collides
+with nothing, so no simulated object is in the way of a real arm's motion. A real
+gripper that closed on an object stops at the object, the simulated one closes further:
+expect the gripper's error to show the grasps. To replay a dataset recorded by
+``python -m gym_soarm.record``, give its task and seed: episode ``k`` then resets with
+``seed + k``, as the recorder's attempt ``k`` did (when every attempt was kept), and the
+objects are where they were.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gym_soarm import constants
+from gym_soarm.tasks import get_task
+from gym_soarm.units import FEATURE_NAMES, RADIANS, UNITS, joint_units
+from gym_soarm.validation import check_choice, check_int
+
+REPLAY_TASK = "ReachTarget-v0"
+"""The default scene: the arm and a target ball that collides with nothing."""
+SIM_FPS = constants.RENDER_FPS
+"""The simulation's step rate (Hz)."""
+KEYS: tuple[str, ...] = ("action", "observation.state")
+"""The dataset features a replay reads."""
+FIGURES: tuple[str, ...] = ("mean_abs", "rms", "max_abs")
+"""The error figures of each joint: mean absolute, root mean square, largest absolute."""
+UNIT_LABELS: dict[str, str] = {
+    "radians": "rad",
+    "lerobot": "deg (gripper 0-100)",
+    "lerobot_range": "-100..100 (gripper 0-100)",
+}
+
+
+def _refuse(root: object, problem: str, fix: str) -> ValueError:
+    return ValueError(f"dataset {root}: {problem}. {fix}")
+
+
+def _names(spec: Mapping[str, Any]) -> list[str] | None:
+    names = spec.get("names")
+    if isinstance(names, Mapping) and len(names) == 1:  # {"motors": [...]} in older files
+        names = next(iter(names.values()))
+    return list(names) if isinstance(names, (list, tuple)) else None
+
+
+@dataclass(frozen=True)
+class ReplayDataset:
+    """The parts of a dataset that a replay reads.
+
+    Attributes:
+        root: the dataset folder.
+        fps: its frame rate.
+        robot_type: ``info.json``'s ``robot_type`` (None when absent).
+        units: the units of its joints, as detected (see the module docstring).
+        episodes: episode index -> (actions, states), each (frames, 6) float64.
+    """
+
+    root: Path
+    fps: int
+    robot_type: str | None
+    units: str
+    episodes: dict[int, tuple[np.ndarray, np.ndarray]]
+
+
+def read_replay_dataset(
+    root: str | os.PathLike[str], episodes: Sequence[int] | None = None
+) -> ReplayDataset:
+    """Read the ``action`` and ``observation.state`` of a LeRobotDataset v3.0 folder.
+
+    Args:
+        root: the dataset folder (holding ``meta/info.json`` and ``data/``).
+        episodes: the episode indices to read; None for all.
+
+    Raises:
+        ValueError: the folder is not a v3.0 dataset, lacks ``action`` or
+            ``observation.state``, names their values otherwise than the SO-101
+            follower, or has no episode of an asked index.
+        ImportError: pyarrow is missing (``pip install "gym-soarm[dataset]"``).
+    """
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError as exc:
+        raise ImportError(
+            "Reading LeRobot datasets needs pyarrow: pip install 'gym-soarm[dataset]'"
+        ) from exc
+    folder = Path(root)
+    if not folder.is_dir():
+        raise _refuse(root, "no such folder", "Pass the folder that holds meta/info.json.")
+    info_path = folder / "meta" / "info.json"
+    if not info_path.is_file():
+        raise _refuse(
+            root,
+            "no meta/info.json, so not a LeRobot dataset",
+            "Pass the dataset's root folder (the one holding meta/ and data/).",
+        )
+    try:
+        info = json.loads(info_path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise _refuse(root, f"meta/info.json cannot be read ({exc})", "Check the file.") from exc
+    version = info.get("codebase_version")
+    if version != "v3.0":
+        raise _refuse(
+            root,
+            f"codebase_version is {version!r}, not 'v3.0'",
+            "Convert it with LeRobot's v2.1-to-v3.0 script first.",
+        )
+    features = info.get("features", {})
+    for key in KEYS:
+        if key not in features:
+            raise _refuse(
+                root,
+                f"no {key!r} feature (it has {', '.join(sorted(features)) or 'none'})",
+                "A replay needs the recorded joint targets ('action') and joint positions "
+                "('observation.state') of an SO-101 follower.",
+            )
+        names = _names(features[key])
+        if names != list(FEATURE_NAMES):
+            raise _refuse(
+                root,
+                f"{key!r} has the values {names!r}; expected the SO-101 follower's "
+                f"{list(FEATURE_NAMES)!r}",
+                "Replay takes absolute joint positions (lerobot-record, or the recorder's "
+                "control_mode='joint_pos').",
+            )
+    fps = info.get("fps")
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not fps > 0:
+        raise _refuse(root, f"fps is {fps!r}", "info.json must give a positive frame rate.")
+    robot_type = info.get("robot_type")
+    units = RADIANS if robot_type == "gym_soarm" else "lerobot"
+
+    files = sorted((folder / "data").glob("chunk-*/file-*.parquet"))
+    if not files:
+        raise _refuse(root, "no data/chunk-*/file-*.parquet", "The dataset has no frames.")
+    columns = ["index", "episode_index", *KEYS]
+    table = pa.concat_tables(pq.read_table(f, columns=columns) for f in files)
+    order = np.argsort(table.column("index").to_numpy(), kind="stable")
+    episode_of = table.column("episode_index").to_numpy()[order]
+    arrays = {}
+    for key in KEYS:
+        column = table.column(key).combine_chunks()
+        values = column.flatten().to_numpy(zero_copy_only=False)
+        arrays[key] = values.reshape(len(column), -1)[order].astype(np.float64)
+    present = sorted(int(e) for e in np.unique(episode_of))
+    wanted = present if episodes is None else list(episodes)
+    for index in wanted:
+        if index not in present:
+            raise _refuse(
+                root,
+                f"no episode {index!r}; it has {len(present)} episode(s), indices "
+                f"{present[0]} to {present[-1]}",
+                "Pass one of those, or no episode to replay them all.",
+            )
+    chosen = {
+        index: (
+            arrays["action"][episode_of == index],
+            arrays["observation.state"][episode_of == index],
+        )
+        for index in wanted
+    }
+    return ReplayDataset(folder, fps, robot_type, units, chosen)
+
+
+def _figures(error: np.ndarray) -> dict[str, dict[str, float]]:
+    """Per joint (feature name): mean absolute, RMS and largest absolute error."""
+    magnitude = np.abs(error)
+    return {
+        name: {
+            "mean_abs": float(magnitude[:, j].mean()),
+            "rms": float(np.sqrt(np.mean(error[:, j] ** 2))),
+            "max_abs": float(magnitude[:, j].max()),
+        }
+        for j, name in enumerate(FEATURE_NAMES)
+    }
+
+
+@dataclass(frozen=True)
+class EpisodeReplay:
+    """One replayed episode.
+
+    Attributes:
+        episode_index: the dataset's episode index.
+        times_s: the compared frames' times (s), frames 1 to the last.
+        recorded: the recorded ``observation.state`` of those frames, (frames - 1, 6).
+        simulated: the simulated ``agent_pos`` at those times, same shape and units.
+    """
+
+    episode_index: int
+    times_s: np.ndarray
+    recorded: np.ndarray
+    simulated: np.ndarray
+
+    @property
+    def error(self) -> np.ndarray:
+        """Simulated minus recorded, per frame and joint."""
+        return self.simulated - self.recorded
+
+    def figures(self) -> dict[str, dict[str, float]]:
+        """Per joint: ``mean_abs``, ``rms`` and ``max_abs`` of the error."""
+        return _figures(self.error)
+
+
+@dataclass(frozen=True)
+class ReplayReport:
+    """The outcome of :func:`replay`: per-episode tracking errors and how they came about."""
+
+    root: str
+    units: str
+    fps: int
+    robot_type: str | None
+    task: str
+    episodes: tuple[EpisodeReplay, ...]
+
+    def figures(self) -> dict[str, dict[str, float]]:
+        """Per joint, over every compared frame of every episode."""
+        return _figures(np.concatenate([e.error for e in self.episodes]))
+
+    def to_json(self) -> dict[str, Any]:
+        """The figures, per episode and overall, with what was replayed."""
+        return {
+            "root": self.root,
+            "units": self.units,
+            "fps": self.fps,
+            "robot_type": self.robot_type,
+            "task": self.task,
+            "frames_compared": int(sum(len(e.times_s) for e in self.episodes)),
+            "overall": self.figures(),
+            "episodes": [
+                {
+                    "episode_index": e.episode_index,
+                    "frames_compared": len(e.times_s),
+                    "joints": e.figures(),
+                }
+                for e in self.episodes
+            ],
+        }
+
+    def table(self) -> str:
+        """The overall figures as a text table, one row per joint."""
+        unit = UNIT_LABELS[self.units]
+        frames = sum(len(e.times_s) for e in self.episodes)
+        lines = [
+            f"tracking error over {len(self.episodes)} episode(s), {frames} frames at "
+            f"{self.fps} fps, in {unit}",
+            f"{'joint':<20}{'mean abs':>12}{'rms':>12}{'max abs':>12}",
+        ]
+        for name, row in self.figures().items():
+            lines.append(
+                f"{name:<20}{row['mean_abs']:>12.4g}{row['rms']:>12.4g}{row['max_abs']:>12.4g}"
+            )
+        return "\n".join(lines)
+
+
+def replay(
+    root: str | os.PathLike[str],
+    episodes: Sequence[int] | None = None,
+    units: str | None = None,
+    calibration: str | os.PathLike[str] | None = None,
+    wrist_roll_offset_deg: float = 0.0,
+    task: str = REPLAY_TASK,
+    seed: int = 0,
+) -> ReplayReport:
+    """Drive the simulation with a dataset's actions; compare with its recorded states.
+
+    Args:
+        root: a LeRobotDataset v3.0 folder (see the module docstring).
+        episodes: episode indices to replay; None for all.
+        units: the dataset's joint units (one of :data:`gym_soarm.units.UNITS`); None to
+            detect them from ``robot_type``.
+        calibration: the recording arm's LeRobot calibration file (LeRobot units only).
+        wrist_roll_offset_deg: the arm's wrist_roll reading when the model's is at 0 rad.
+        task: the scene to replay in (a registered task or alias).
+        seed: episode ``k`` resets the scene with ``seed + k`` (its objects' places).
+
+    Raises:
+        ValueError: a bad argument or dataset (nothing is simulated then).
+        ImportError: pyarrow is missing.
+    """
+    import gymnasium as gym
+
+    spec = get_task(task)
+    check_choice("units", units, UNITS, none_ok=True)
+    seed = check_int("seed", seed, 0)
+    if episodes is not None:
+        episodes = [check_int("episode", e, 0) for e in episodes]
+    dataset = read_replay_dataset(root, episodes)
+    chosen_units = units or dataset.units
+    joint_units(chosen_units, wrist_roll_offset_deg, calibration)  # checks them all first
+    env = gym.make(
+        spec.env_id,
+        obs_type="environment_state_agent_pos",
+        units=chosen_units,
+        wrist_roll_offset_deg=wrist_roll_offset_deg,
+        calibration=calibration,
+    )
+    try:
+        replays = tuple(
+            _replay_episode(env.unwrapped, index, actions, states, dataset.fps, seed + index)
+            for index, (actions, states) in dataset.episodes.items()
+        )
+    finally:
+        env.close()
+    return ReplayReport(
+        str(root), chosen_units, dataset.fps, dataset.robot_type, spec.name, replays
+    )
+
+
+def _replay_episode(
+    env: Any, index: int, actions: np.ndarray, states: np.ndarray, fps: float, seed: int
+) -> EpisodeReplay:
+    frames = len(states)
+    if frames < 2:
+        raise ValueError(
+            f"episode {index} has {frames} frame(s); a replay compares the frames after the "
+            "first, so it needs at least 2. Leave that episode out."
+        )
+    env.reset(seed=seed)
+    physics = env.physics
+    start = env.joint_units.to_radians(states[0])
+    low, high = physics.control_range()
+    start = np.clip(start, low, high)
+    physics.set_joint_angles(start)
+    physics.set_joint_targets(start)
+    physics.forward()
+    # Steps at 50 Hz until the last frame's time; each sends the frame in force then.
+    steps = math.ceil((frames - 1) * SIM_FPS / fps - 1e-9)
+    positions = np.empty((steps + 1, len(FEATURE_NAMES)))
+    positions[0] = env.joint_units.from_radians(physics.joint_angles())
+    for k in range(steps):
+        frame = min(int(k * fps // SIM_FPS), frames - 2)
+        obs, *_ = env.step(actions[frame].astype(np.float32))
+        positions[k + 1] = obs["agent_pos"]
+    times = np.arange(1, frames) / fps
+    if fps == SIM_FPS:
+        simulated = positions[1:frames]
+    else:
+        sim_times = np.arange(steps + 1) / SIM_FPS
+        simulated = np.stack(
+            [np.interp(times, sim_times, positions[:, j]) for j in range(positions.shape[1])],
+            axis=1,
+        )
+    return EpisodeReplay(index, times, states[1:], simulated)
+
+
+# --- the plot ---------------------------------------------------------------------------------
+_RECORDED_BGR = (40, 40, 40)
+_SIMULATED_BGR = (30, 120, 230)
+_PANEL_W, _PANEL_H, _MARGIN = 560, 240, 48
+
+
+def plot_replay(report: ReplayReport, path: str | os.PathLike[str]) -> None:
+    """Write a PNG: per joint, the recorded and the simulated position over time.
+
+    Six panels (two columns); episodes follow one another along the time axis, split by
+    grey lines. Recorded in dark grey, simulated in orange. Drawn with OpenCV.
+
+    Raises:
+        ValueError: ``path`` does not end in ``.png`` or cannot be written.
+    """
+    import cv2
+
+    if not str(path).lower().endswith(".png"):
+        raise ValueError(f"plot path must end in .png; got {os.fspath(path)!r}.")
+    recorded = np.concatenate([e.recorded for e in report.episodes])
+    simulated = np.concatenate([e.simulated for e in report.episodes])
+    bounds = np.cumsum([len(e.times_s) for e in report.episodes])[:-1]
+    n = len(recorded)
+    cols, rows = 2, math.ceil(len(FEATURE_NAMES) / 2)
+    width = cols * (_PANEL_W + _MARGIN) + _MARGIN
+    height = rows * (_PANEL_H + _MARGIN) + _MARGIN + 24
+    image = np.full((height, width, 3), 255, np.uint8)
+    font = cv2.FONT_HERSHEY_SIMPLEX
+    title = (
+        f"{Path(report.root).name}: recorded (grey) vs simulated (orange), "
+        f"{len(report.episodes)} episode(s), {UNIT_LABELS[report.units]}"
+    )
+    cv2.putText(image, title, (_MARGIN, 28), font, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
+    for j, name in enumerate(FEATURE_NAMES):
+        x0 = _MARGIN + (j % cols) * (_PANEL_W + _MARGIN)
+        y0 = _MARGIN + 24 + (j // cols) * (_PANEL_H + _MARGIN)
+        cv2.rectangle(image, (x0, y0), (x0 + _PANEL_W, y0 + _PANEL_H), (180, 180, 180), 1)
+        values = np.concatenate([recorded[:, j], simulated[:, j]])
+        lo, hi = float(values.min()), float(values.max())
+        if hi - lo < 1e-9:
+            lo, hi = lo - 1.0, hi + 1.0
+        for b in bounds:
+            x = x0 + round(float(b) / max(n - 1, 1) * _PANEL_W)
+            cv2.line(image, (x, y0), (x, y0 + _PANEL_H), (210, 210, 210), 1)
+        for series, colour, thickness in (
+            (recorded[:, j], _RECORDED_BGR, 2),
+            (simulated[:, j], _SIMULATED_BGR, 1),
+        ):
+            xs = x0 + np.linspace(0, _PANEL_W, n) if n > 1 else np.array([x0 + _PANEL_W / 2])
+            ys = y0 + _PANEL_H - (series - lo) / (hi - lo) * _PANEL_H
+            points = np.round(np.stack([xs, ys], axis=1)).astype(np.int32)
+            cv2.polylines(image, [points], False, colour, thickness, cv2.LINE_AA)
+        cv2.putText(image, name, (x0 + 6, y0 + 18), font, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
+        for value, y in ((hi, y0 + 14), (lo, y0 + _PANEL_H - 6)):
+            label = f"{value:.4g}"
+            x = x0 + _PANEL_W - 8 - 7 * len(label)
+            cv2.putText(image, label, (x, y), font, 0.4, (90, 90, 90), 1, cv2.LINE_AA)
+    if not cv2.imwrite(os.fspath(path), image):
+        raise ValueError(f"plot path {os.fspath(path)!r} cannot be written; check its folder.")
