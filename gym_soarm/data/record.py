@@ -347,7 +347,7 @@ def record(
         "control_mode": control_mode,
     }
     if calibration is not None:
-        env_kwargs["calibration"] = os.fspath(calibration)
+        common_kwargs["calibration"] = os.fspath(calibration)
     if state_only:
         common_kwargs["obs_type"] = "environment_state_agent_pos"
     else:
