@@ -1,0 +1,261 @@
+"""``python -m gym_soarm.teleop`` (``gym-soarm-teleop``): drive the jaws, record episodes.
+
+The window and its loop are :class:`gym_soarm.teleop.session.TeleopSession`; this module
+parses the command line, makes the environment, the dataset writer and the gamepad, and
+prints one line per event (reset, start, gripper, save, discard, exit) on stdout.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import gymnasium as gym
+
+from gym_soarm import constants
+from gym_soarm.control import CONTROL_MODES
+from gym_soarm.data import LeRobotDatasetWriter
+from gym_soarm.data.record import (
+    CAMERA_CONFIG_CHOICES,
+    CAMERA_CONFIG_NONE,
+    DEFAULT_RECORD_TASK,
+    FPS,
+    dataset_features,
+    default_root,
+)
+from gym_soarm.render.display import window_support_problem
+from gym_soarm.tasks import get_task, task_names, task_spellings
+from gym_soarm.teleop.input import KEY_HELP, MAX_SPEED_M_S, MAX_TURN_SPEED_RAD_S, TeleopSpeeds
+from gym_soarm.teleop.session import KEEP_CHOICES, TeleopSession
+from gym_soarm.units import UNITS
+from gym_soarm.validation import check_int, parse_size, resolve_camera_config
+
+DEFAULT_SIZE = "240x320"
+DEFAULT_MAX_STEPS = 1500
+DEFAULT_REPO_ID = "local/soarm_teleop"
+SHOWN_WITHOUT_CAMERAS: tuple[str, ...] = ("front_camera", "wrist_camera")
+
+
+def _key_map_text() -> str:
+    width = max(len(keys) for keys, _ in KEY_HELP)
+    return "\n".join(f"  {keys:<{width}}  {what}" for keys, what in KEY_HELP)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m gym_soarm.teleop",
+        description="Drive the SO-101's jaw centre in the robot's base frame from the keyboard "
+        "(or a gamepad) in a window that shows the cameras, and record the episodes as a "
+        "LeRobotDataset v3.0 (with --root or --repo-id; without them it only drives). The "
+        "simulation waits for the first key of each episode, then runs in real time (50 Hz, "
+        "or as fast as rendering allows: the default 240x320 images keep it quick).",
+        epilog="keys (with the window focused):\n" + _key_map_text() + "\n\nAn episode ends "
+        "when you save it, when the task succeeds, or at --max-steps; a recording saves it "
+        "then (--keep success: only if the task succeeded). Each saved episode holds its "
+        "instruction and next.success per frame; Ctrl-C, Esc/Q and closing the window keep "
+        "every saved episode.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--task",
+        choices=task_spellings(),
+        default=DEFAULT_RECORD_TASK,
+        metavar="TASK",
+        help=f"a task: {', '.join(task_names())} (default {DEFAULT_RECORD_TASK})",
+    )
+    parser.add_argument(
+        "--episodes", type=int, default=10, help="stop after saving N episodes (default 10)"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the first episode's reset")
+    parser.add_argument(
+        "--root",
+        default=None,
+        help="record into this dataset folder (default with --repo-id: "
+        "$HF_LEROBOT_HOME/<repo-id>; without either nothing is recorded)",
+    )
+    parser.add_argument(
+        "--repo-id",
+        default=None,
+        help=f"dataset name as LeRobot sees it, owner/name (default {DEFAULT_REPO_ID})",
+    )
+    parser.add_argument(
+        "--overwrite", action="store_true", help="replace an existing dataset in --root"
+    )
+    parser.add_argument(
+        "--camera-config",
+        default="front_wrist",
+        help=f"one of {', '.join(CAMERA_CONFIG_CHOICES)} or comma-separated camera names: "
+        "the cameras shown and recorded; 'none' records observation.environment_state and "
+        "shows the front and wrist cameras (default front_wrist)",
+    )
+    parser.add_argument(
+        "--size", default=DEFAULT_SIZE, help=f"image HEIGHTxWIDTH (default {DEFAULT_SIZE})"
+    )
+    parser.add_argument(
+        "--units", choices=UNITS, default="lerobot", help="joint units (default lerobot)"
+    )
+    parser.add_argument(
+        "--wrist-roll-offset-deg",
+        type=float,
+        default=0.0,
+        metavar="DEG",
+        help="with LeRobot units: the real arm's wrist_roll reading when the model's is at "
+        "0 rad (default 0)",
+    )
+    parser.add_argument(
+        "--control-mode",
+        choices=CONTROL_MODES,
+        default="joint_pos",
+        help="what the recorded action is: joint targets (joint_pos), their changes "
+        "(joint_delta), the jaws' pose in the robot's base frame (ee_pose) or its changes "
+        "(ee_delta) (default joint_pos)",
+    )
+    parser.add_argument(
+        "--keep",
+        choices=KEEP_CHOICES,
+        default="all",
+        help="'all': save every ended episode; 'success': only those where the task succeeded",
+    )
+    parser.add_argument(
+        "--max-steps",
+        type=int,
+        default=DEFAULT_MAX_STEPS,
+        metavar="N",
+        help=f"an episode ends after N steps (default {DEFAULT_MAX_STEPS}: 30 s)",
+    )
+    parser.add_argument(
+        "--speed",
+        type=float,
+        default=0.1,
+        metavar="M_S",
+        help="jaw centre speed while a key is held, m/s of simulated time, up to 0.5 (default 0.1)",
+    )
+    parser.add_argument(
+        "--turn-speed",
+        type=float,
+        default=1.0,
+        metavar="RAD_S",
+        help="pitch and roll speed while a key is held, rad/s, up to 5 (default 1)",
+    )
+    parser.add_argument(
+        "--gamepad",
+        nargs="?",
+        type=int,
+        const=0,
+        default=None,
+        metavar="INDEX",
+        help="also drive with gamepad INDEX (default 0): left stick x/y, right stick z/roll, "
+        "shoulder buttons pitch, A gripper, Start save, Back discard; needs pip install pygame",
+    )
+    parser.add_argument(
+        "--quality", choices=("fast", "high"), default="fast", help="render quality (default fast)"
+    )
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point; returns the process exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    camera_config: str | list[str] = args.camera_config
+    if "," in camera_config or camera_config in constants.CAMERA_NAMES:
+        camera_config = [c.strip() for c in camera_config.split(",") if c.strip()]
+    state_only = camera_config == CAMERA_CONFIG_NONE
+    recording = args.root is not None or args.repo_id is not None
+    repo_id = args.repo_id or DEFAULT_REPO_ID
+    try:
+        spec = get_task(args.task)
+        height, width = parse_size(args.size)
+        cameras = () if state_only else resolve_camera_config(camera_config)
+        episodes = check_int("--episodes", args.episodes, 1)
+        max_steps = check_int("--max-steps", args.max_steps, 1)
+        check_int("--seed", args.seed, 0)
+    except (ValueError, TypeError) as exc:
+        parser.error(str(exc))
+    for flag, value, limit, unit in (
+        ("--speed", args.speed, MAX_SPEED_M_S, "m/s"),
+        ("--turn-speed", args.turn_speed, MAX_TURN_SPEED_RAD_S, "rad/s"),
+    ):
+        if not 0.0 < value <= limit:
+            parser.error(f"{flag} must be above 0 and at most {limit:g} {unit}; got {value}.")
+    speeds = TeleopSpeeds(args.speed, args.turn_speed, constants.CONTROL_TIMESTEP_S)
+    problem = window_support_problem()
+    if problem is not None:
+        print(problem, file=sys.stderr)
+        return 1
+    gamepad = None
+    if args.gamepad is not None:
+        from gym_soarm.teleop.gamepad import Gamepad
+
+        try:
+            gamepad = Gamepad(args.gamepad)
+        except ImportError as exc:
+            parser.error(f"--gamepad: {exc}")
+        except (RuntimeError, ValueError) as exc:
+            print(f"--gamepad: {exc}", file=sys.stderr)
+            return 1
+        print(f"gamepad {gamepad.name!r}", flush=True)
+
+    env_kwargs = {
+        "units": args.units,
+        "wrist_roll_offset_deg": args.wrist_roll_offset_deg,
+        "control_mode": args.control_mode,
+        "render_quality": args.quality,
+        "observation_height": height,
+        "observation_width": width,
+    }
+    if state_only:
+        env_kwargs["obs_type"] = "environment_state_agent_pos"
+    else:
+        env_kwargs.update(obs_type="pixels_agent_pos", camera_config=list(cameras))
+    writer = None
+    root = Path(args.root) if args.root else default_root(repo_id)
+    try:
+        env = gym.make(spec.env_id, max_episode_steps=max_steps, **env_kwargs)
+    except (ValueError, TypeError) as exc:
+        if gamepad is not None:
+            gamepad.close()
+        parser.error(str(exc))
+    try:
+        if recording:
+            state_names = env.unwrapped.state_names if state_only else None
+            features = dataset_features(cameras, height, width, state_names, args.control_mode)
+            robot_type = "gym_soarm" if args.units == "radians" else "so101_follower"
+            try:
+                writer = LeRobotDatasetWriter.create(
+                    root, FPS, features, robot_type=robot_type, overwrite=args.overwrite
+                )
+            except (ValueError, FileExistsError, ImportError) as exc:
+                parser.error(str(exc))
+            print(f"recording into {root}", flush=True)
+        session = TeleopSession(
+            env,
+            writer,
+            cameras=SHOWN_WITHOUT_CAMERAS if state_only else cameras,
+            episodes=episodes,
+            seed=args.seed,
+            keep=args.keep,
+            speeds=speeds,
+            gamepad=gamepad,
+            report=lambda line: print(line, flush=True),
+        )
+        summary = session.run()
+    finally:
+        if writer is not None:
+            writer.finalize()
+        env.close()
+        if gamepad is not None:
+            gamepad.close()
+    if writer is not None:
+        print(
+            f"{summary.episodes} episodes, {summary.frames} frames saved in {root}; load it "
+            f"with: LeRobotDataset({repo_id!r}, root={str(root)!r})",
+            flush=True,
+        )
+    return 130 if summary.interrupted else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
