@@ -27,6 +27,7 @@ from gym_soarm.data.record import (
 )
 from gym_soarm.render.display import window_support_problem
 from gym_soarm.tasks import get_task, task_names, task_spellings
+from gym_soarm.teleop.gamepad import Gamepad, import_pygame
 from gym_soarm.teleop.input import KEY_HELP, MAX_SPEED_M_S, MAX_TURN_SPEED_RAD_S, TeleopSpeeds
 from gym_soarm.teleop.session import KEEP_CHOICES, TeleopSession
 from gym_soarm.units import UNITS
@@ -181,18 +182,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not 0.0 < value <= limit:
             parser.error(f"{flag} must be above 0 and at most {limit:g} {unit}; got {value}.")
     speeds = TeleopSpeeds(args.speed, args.turn_speed, constants.CONTROL_TIMESTEP_S)
+    if args.gamepad is not None:
+        try:
+            import_pygame()
+        except ImportError as exc:
+            parser.error(f"--gamepad: {exc}")
     problem = window_support_problem()
     if problem is not None:
         print(problem, file=sys.stderr)
         return 1
     gamepad = None
     if args.gamepad is not None:
-        from gym_soarm.teleop.gamepad import Gamepad
-
         try:
             gamepad = Gamepad(args.gamepad)
-        except ImportError as exc:
-            parser.error(f"--gamepad: {exc}")
         except (RuntimeError, ValueError) as exc:
             print(f"--gamepad: {exc}", file=sys.stderr)
             return 1

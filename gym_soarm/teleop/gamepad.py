@@ -8,6 +8,7 @@ commands is :func:`gym_soarm.teleop.input.gamepad_motion` and
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 import numpy as np
@@ -20,6 +21,7 @@ PYGAME_FIX = "pip install pygame (or pip install 'gym-soarm[teleop]')"
 
 def import_pygame() -> Any:
     """The pygame module, or an ImportError that says how to install it."""
+    os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")  # no greeting on stdout
     try:
         import pygame
     except ImportError as exc:
