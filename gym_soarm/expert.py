@@ -29,6 +29,7 @@ import numpy as np
 from gym_soarm.env import SoArmEnv
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, ScriptedExpert
+from gym_soarm.tasks.suites import EVAL_SEED
 from gym_soarm.validation import ArgumentTypeError
 
 EVALUATION_SEEDS = 3
@@ -127,12 +128,25 @@ def evaluate(task: str, seeds: int | None = None, **env_kwargs: Any) -> list[Epi
         env.close()
 
 
+def evaluate_protocol(task: str, episodes: int, **env_kwargs: Any) -> list[EpisodeResult]:
+    """Run ``task``'s expert on the benchmark's protocol: episode ``k`` resets with seed
+    ``EVAL_SEED + k`` and no options, as ``lerobot-eval`` resets it (state observations)."""
+    spec = get_task(task)
+    env = gym.make(spec.env_id, obs_type="environment_state_agent_pos", **env_kwargs)
+    try:
+        expert = make_expert(env)
+        return [run_episode(env, expert, EVAL_SEED + k, None) for k in range(episodes)]
+    finally:
+        env.close()
+
+
 __all__ = [
     "DEFAULT_CONFIG",
     "EpisodeResult",
     "ExpertConfig",
     "ScriptedExpert",
     "evaluate",
+    "evaluate_protocol",
     "evaluation_resets",
     "make_expert",
     "run_episode",

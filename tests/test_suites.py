@@ -164,3 +164,18 @@ def test_the_record_cli_takes_a_suite_and_refuses_an_unknown_one(tmp_path, capsy
         record_cli.main(["--task", "soarm_bogus", "--root", str(tmp_path / "x")])
     assert raised.value.code == 2
     assert "soarm_core" in capsys.readouterr().err
+
+
+def test_the_expert_runs_on_the_protocol_of_a_suite(capsys):
+    from gym_soarm.cli import expert as expert_cli
+    from gym_soarm.expert import evaluate_protocol
+
+    results = evaluate_protocol("ReachTarget-v0", 3)
+    assert [r.seed for r in results] == [EVAL_SEED, EVAL_SEED + 1, EVAL_SEED + 2]
+    assert all(r.success and r.options is None for r in results)
+    expert_cli.main(["--task", "soarm_language", "ReachTarget-v0", "--protocol", "2"])
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split(":")[0] for line in lines] == ["PickColoredCube-v0", "ReachTarget-v0"]
+    assert all("2/2 = 100.0 % success" in line for line in lines)
+    with pytest.raises(SystemExit):
+        expert_cli.main(["--task", "soarm_nothing"])

@@ -1,8 +1,11 @@
 """``python -m gym_soarm.expert`` (``gym-soarm-expert``): each task's expert success rate.
 
-Runs :func:`gym_soarm.expert.evaluate` on every registered task (or the ones named),
-with state observations, and prints one line per task: success, steps to success and
-the time taken. ``--control-mode`` makes the expert answer in another control mode.
+Runs :func:`gym_soarm.expert.evaluate` on every registered task (or the tasks and suites
+named), with state observations, and prints one line per task: success, steps to success
+and the time taken. ``--control-mode`` makes the expert answer in another control mode.
+``--protocol N`` measures it on the benchmark's protocol instead
+(:func:`gym_soarm.expert.evaluate_protocol`: episode ``k`` resets with seed
+``EVAL_SEED + k``, as ``lerobot-eval`` runs it), the reference row of a suite's scores.
 """
 
 from __future__ import annotations
@@ -12,8 +15,19 @@ import time
 from collections.abc import Sequence
 
 from gym_soarm.control import CONTROL_MODES
-from gym_soarm.expert import evaluate
-from gym_soarm.tasks import get_task, task_names, task_spellings
+from gym_soarm.expert import EpisodeResult, evaluate, evaluate_protocol
+from gym_soarm.tasks import get_task, task_names
+from gym_soarm.tasks.suites import EVAL_SEED, SUITE_NAMES, SelectedTask, resolve_selection
+
+
+def _selection(text: str) -> str:
+    if text == "all":
+        return text
+    try:
+        resolve_selection(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -21,15 +35,17 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(
         prog="python -m gym_soarm.expert",
         description="Measure the scripted expert's success rate on each task: grid tasks "
-        "over 9 cells x 4 yaws x 3 seeds, the others over seeds 0-99.",
+        "over 9 cells x 4 yaws x 3 seeds, the others over seeds 0-99 (or, with --protocol, "
+        f"on the benchmark's seeds {EVAL_SEED} + k).",
     )
     parser.add_argument(
         "--task",
         nargs="+",
-        choices=[*task_spellings(), "all"],
+        type=_selection,
         default=["all"],
         metavar="TASK",
-        help=f"tasks to measure: {', '.join(task_names())}, or all (default)",
+        help=f"tasks to measure: {', '.join(task_names())}, suites "
+        f"({', '.join(SUITE_NAMES)}), or all (default)",
     )
     parser.add_argument(
         "--seeds",
@@ -37,6 +53,14 @@ def main(argv: Sequence[str] | None = None) -> None:
         default=None,
         help="seeds per grid cell and yaw for grid tasks (default 3), episodes for the "
         "others (default 100)",
+    )
+    parser.add_argument(
+        "--protocol",
+        type=int,
+        default=None,
+        metavar="N",
+        help=f"instead: N episodes per task on the benchmark's protocol (seeds {EVAL_SEED} + k, "
+        "a suite's own randomisation), as lerobot-eval runs them",
     )
     parser.add_argument(
         "--control-mode",
@@ -48,28 +72,44 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if args.seeds is not None and args.seeds < 1:
         parser.error(f"--seeds must be >= 1; got {args.seeds}")
-    names = task_names() if "all" in args.task else [get_task(t).name for t in args.task]
-    for name in dict.fromkeys(names):
+    if args.protocol is not None and args.protocol < 1:
+        parser.error(f"--protocol must be >= 1; got {args.protocol}")
+    selection = ",".join(task_names() if "all" in args.task else args.task)
+    items: list[SelectedTask] = []
+    for item in resolve_selection(selection):
+        if all((item.task, item.variation) != (seen.task, seen.variation) for seen in items):
+            items.append(item)
+    for item in items:
         started = time.perf_counter()
-        results = evaluate(name, args.seeds, control_mode=args.control_mode)
-        elapsed = time.perf_counter() - started
-        wins = sum(r.success for r in results)
-        steps = sorted(r.steps for r in results if r.success)
-        limit = get_task(name).max_episode_steps
-        spread = (
-            f"steps to success {steps[0]}-{steps[-1]} (median {steps[len(steps) // 2]}) of {limit}"
-            if steps
-            else "no success"
-        )
-        print(
-            f"{name}: {wins}/{len(results)} = {100.0 * wins / len(results):.1f} % success, "
-            f"{spread} ({elapsed:.1f} s)",
-            flush=True,
-        )
-        if args.verbose:
-            for r in results:
-                if not r.success:
-                    print(f"  failed: seed {r.seed} options {r.options} ({r.steps} steps)")
+        kwargs = {**item.variation, "control_mode": args.control_mode}
+        if args.protocol is not None:
+            results = evaluate_protocol(item.task, args.protocol, **kwargs)
+        else:
+            results = evaluate(item.task, args.seeds, **kwargs)
+        label = item.task if not item.variation else f"{item.group}/{item.task}"
+        _report(label, get_task(item.task).max_episode_steps, results, started, args.verbose)
+
+
+def _report(
+    label: str, limit: int, results: list[EpisodeResult], started: float, verbose: bool
+) -> None:
+    elapsed = time.perf_counter() - started
+    wins = sum(r.success for r in results)
+    steps = sorted(r.steps for r in results if r.success)
+    spread = (
+        f"steps to success {steps[0]}-{steps[-1]} (median {steps[len(steps) // 2]}) of {limit}"
+        if steps
+        else "no success"
+    )
+    print(
+        f"{label}: {wins}/{len(results)} = {100.0 * wins / len(results):.1f} % success, "
+        f"{spread} ({elapsed:.1f} s)",
+        flush=True,
+    )
+    if verbose:
+        for r in results:
+            if not r.success:
+                print(f"  failed: seed {r.seed} options {r.options} ({r.steps} steps)")
 
 
 if __name__ == "__main__":
