@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from gym_soarm import constants
-from gym_soarm.control import CONTROL_MODES
+from gym_soarm.cli.options import add_dataset_action_arguments
 from gym_soarm.data.record import (
     CAMERA_CONFIG_CHOICES,
     DEFAULT_RECORD_TASK,
@@ -23,7 +23,6 @@ from gym_soarm.data.record import (
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
 from gym_soarm.tasks import task_names
 from gym_soarm.tasks.suites import SUITE_NAMES, resolve_selection
-from gym_soarm.units import UNITS
 from gym_soarm.validation import parse_size
 
 
@@ -70,32 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
         "'none' records observation.environment_state and no video (default front_wrist)",
     )
     parser.add_argument("--size", default="480x640", help="image HEIGHTxWIDTH (default 480x640)")
-    parser.add_argument(
-        "--units", choices=UNITS, default="lerobot", help="joint units (default lerobot)"
-    )
-    parser.add_argument(
-        "--wrist-roll-offset-deg",
-        type=float,
-        default=0.0,
-        metavar="DEG",
-        help="with LeRobot units: the real arm's wrist_roll reading when the model's is at "
-        "0 rad, e.g. -90 (default 0)",
-    )
-    parser.add_argument(
-        "--calibration",
-        default=None,
-        metavar="PATH",
-        help="with LeRobot units: a real SO-101 follower's LeRobot calibration JSON; states "
-        "and actions are then that arm's values",
-    )
-    parser.add_argument(
-        "--control-mode",
-        choices=CONTROL_MODES,
-        default="joint_pos",
-        help="what the recorded action is: joint targets (joint_pos), their changes "
-        "(joint_delta), the jaws' pose in the robot's base frame (ee_pose) or its changes "
-        "(ee_delta) (default joint_pos)",
-    )
+    add_dataset_action_arguments(parser)
     parser.add_argument(
         "--keep",
         choices=KEEP_CHOICES,

@@ -15,7 +15,7 @@ from pathlib import Path
 import gymnasium as gym
 
 from gym_soarm import constants
-from gym_soarm.control import CONTROL_MODES
+from gym_soarm.cli.options import add_dataset_action_arguments
 from gym_soarm.data import LeRobotDatasetWriter
 from gym_soarm.data.record import (
     CAMERA_CONFIG_CHOICES,
@@ -30,7 +30,6 @@ from gym_soarm.tasks import get_task, task_names, task_spellings
 from gym_soarm.teleop.gamepad import Gamepad, import_pygame
 from gym_soarm.teleop.input import KEY_HELP, MAX_SPEED_M_S, MAX_TURN_SPEED_RAD_S, TeleopSpeeds
 from gym_soarm.teleop.session import KEEP_CHOICES, TeleopSession
-from gym_soarm.units import UNITS
 from gym_soarm.validation import check_int, parse_size, resolve_camera_config
 
 DEFAULT_SIZE = "240x320"
@@ -94,25 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--size", default=DEFAULT_SIZE, help=f"image HEIGHTxWIDTH (default {DEFAULT_SIZE})"
     )
-    parser.add_argument(
-        "--units", choices=UNITS, default="lerobot", help="joint units (default lerobot)"
-    )
-    parser.add_argument(
-        "--wrist-roll-offset-deg",
-        type=float,
-        default=0.0,
-        metavar="DEG",
-        help="with LeRobot units: the real arm's wrist_roll reading when the model's is at "
-        "0 rad (default 0)",
-    )
-    parser.add_argument(
-        "--control-mode",
-        choices=CONTROL_MODES,
-        default="joint_pos",
-        help="what the recorded action is: joint targets (joint_pos), their changes "
-        "(joint_delta), the jaws' pose in the robot's base frame (ee_pose) or its changes "
-        "(ee_delta) (default joint_pos)",
-    )
+    add_dataset_action_arguments(parser)
     parser.add_argument(
         "--keep",
         choices=KEEP_CHOICES,
@@ -203,6 +184,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     env_kwargs = {
         "units": args.units,
         "wrist_roll_offset_deg": args.wrist_roll_offset_deg,
+        "calibration": args.calibration,
         "control_mode": args.control_mode,
         "render_quality": args.quality,
         "observation_height": height,

@@ -1,0 +1,39 @@
+"""Command-line options shared by the programs that write datasets (recorder, teleop)."""
+
+from __future__ import annotations
+
+import argparse
+
+from gym_soarm.control import CONTROL_MODES
+from gym_soarm.units import UNITS
+
+
+def add_dataset_action_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add ``--units``, ``--wrist-roll-offset-deg``, ``--calibration`` and ``--control-mode``:
+    what the recorded states and actions hold."""
+    parser.add_argument(
+        "--units", choices=UNITS, default="lerobot", help="joint units (default lerobot)"
+    )
+    parser.add_argument(
+        "--wrist-roll-offset-deg",
+        type=float,
+        default=0.0,
+        metavar="DEG",
+        help="with LeRobot units: the real arm's wrist_roll reading when the model's is at "
+        "0 rad, e.g. -90 (default 0)",
+    )
+    parser.add_argument(
+        "--calibration",
+        default=None,
+        metavar="PATH",
+        help="with LeRobot units: a real SO-101 follower's LeRobot calibration JSON; states "
+        "and actions are then that arm's values",
+    )
+    parser.add_argument(
+        "--control-mode",
+        choices=CONTROL_MODES,
+        default="joint_pos",
+        help="what the recorded action is: joint targets (joint_pos), their changes "
+        "(joint_delta), the jaws' pose in the robot's base frame (ee_pose) or its changes "
+        "(ee_delta) (default joint_pos)",
+    )
