@@ -28,6 +28,19 @@ the default ``joint_pos`` and are checked only there.
 by ``gymnasium.vector.AsyncVectorEnv``. The cold ``make`` time (an empty model cache:
 rebuild the meshes and compile) is measured once per visual variant.
 
+``--vector-scaling 1,2,4,8,16`` adds the scaling of vector environments
+(:mod:`gym_soarm.tools.bench_vector`): aggregate steps/s of the native threaded vector env,
+``AsyncVectorEnv`` and ``SyncVectorEnv`` at each ``num_envs``, and the speedup of each over
+one environment measured in the same rounds; state observations, and the camera configs
+of ``--vector-obs`` at ``--image-size``. Its SPEC section 16 target (the native env's best
+speedup with state observations at least 1.7) joins the checked targets.
+
+``--recording N`` adds recording throughput (:mod:`gym_soarm.tools.bench_record`):
+episodes per minute of ``LiftCube-v0``'s scripted expert recorded by one process and by
+``N`` worker processes (and as Ray tasks on a local cluster with ``--recording-ray``),
+without cameras and with the ``--recording-cameras`` at ``--image-size``. Each recording
+runs in a fresh process and its dataset is read back to count what it holds.
+
 Timings on a shared machine are noisy: read the medians and the ratios.
 """
 
@@ -80,6 +93,8 @@ TARGETS: tuple[tuple[str, str, float, str], ...] = (
     ("make_s", "state", 1.0, "max"),
 )
 RATIO_TARGET = 0.8  # every pixel configuration against its raw-renderer ceiling
+VECTOR_SPEEDUP_TARGET = 1.7  # SPEC section 16: native vector env over one env, state
+DEFAULT_IMAGE_SIZE = (96, 128)  # (height, width) of --vector-obs and --recording-cameras
 
 _CONFIG_PATTERN = re.compile(r"^(front_only|front_wrist|all)_(\d+)x(\d+)(?:_(fast|high))?$")
 
@@ -597,6 +612,127 @@ def measure_config(
     return result
 
 
+def measure_vector_scaling(
+    counts: Sequence[int],
+    obs: str,
+    size: tuple[int, int],
+    seconds: float,
+    repeats: int,
+    task: str = DEFAULT_TASK,
+    modes: Sequence[str] | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Scaling of the vector envs with ``obs`` observations, in a fresh process.
+
+    Returns :func:`gym_soarm.tools.bench_vector.measure`'s report, or ``{"obs": obs,
+    "error": ...}`` when the process failed.
+    """
+    from gym_soarm.tasks import get_task
+    from gym_soarm.tools.bench_vector import VECTOR_MODES
+
+    modes = list(modes or VECTOR_MODES)
+    if progress is not None:
+        progress(f"measuring vector scaling ({obs}, num_envs {','.join(map(str, counts))}) ...")
+    job = {
+        "kind": "vector_scaling",
+        "env_id": get_task(task).env_id,
+        "counts": list(counts),
+        "obs": obs,
+        "size": list(size),
+        "seconds": seconds,
+        "repeats": repeats,
+        "modes": modes,
+    }
+    timeout = 300 + len(counts) * (60 + (len(modes) + 1) * repeats * seconds * 3)
+    try:
+        return _one_shot(job, timeout)
+    except (RuntimeError, subprocess.TimeoutExpired, OSError) as exc:
+        return {"obs": obs, "error": str(exc)}
+
+
+def measure_recording(
+    workers: int,
+    ray: bool,
+    episodes: int,
+    cameras: Sequence[str],
+    size: tuple[int, int],
+    repeats: int,
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Episodes per minute of 1 and ``workers`` recorders (and Ray), each in a fresh process.
+
+    The repeats take every recorder in turn, so they see the same machine load; the
+    median episodes per minute is reported with the speedup over one process (the
+    median of the per-repeat ratios).
+    """
+    from gym_soarm.tools import bench_record
+
+    variants = bench_record.variants(workers, ray)
+    rows = []
+    for camera_config in cameras:
+        runs: dict[str, list[dict]] = {v["name"]: [] for v in variants}
+        errors: dict[str, str] = {}
+        for repeat in range(repeats):
+            for variant in variants:
+                if variant["name"] in errors:
+                    continue
+                if progress is not None:
+                    progress(
+                        f"recording {episodes} episodes ({camera_config}, {variant['name']}, "
+                        f"repeat {repeat + 1}/{repeats}) ..."
+                    )
+                job = {
+                    "kind": "recording",
+                    "camera_config": camera_config,
+                    "size": list(size),
+                    "episodes": episodes,
+                    "workers": variant["workers"],
+                    "ray_address": variant["ray_address"],
+                }
+                try:
+                    runs[variant["name"]].append(_one_shot(job, 600 + 60 * episodes))
+                except (RuntimeError, subprocess.TimeoutExpired, OSError) as exc:
+                    errors[variant["name"]] = str(exc)
+        base = runs[variants[0]["name"]]
+        for variant in variants:
+            name = variant["name"]
+            row: dict[str, Any] = {
+                "camera_config": camera_config,
+                "recorder": name,
+                "workers": variant["workers"],
+                "ray": variant["ray_address"] is not None,
+            }
+            if name in errors:
+                row["error"] = errors[name]
+            else:
+                got = runs[name]
+                rates = [r["episodes_per_min"] for r in got]
+                row.update(
+                    episodes_per_min=_spread(rates),
+                    seconds=_spread([r["seconds"] for r in got]),
+                    episodes=[r["episodes"] for r in got],
+                    dataset_episodes=[r["dataset_episodes"] for r in got],
+                    frames=[r["frames"] for r in got],
+                    dataset_frames=[r["dataset_frames"] for r in got],
+                    bytes_on_disk=statistics.median(r["bytes_on_disk"] for r in got),
+                )
+                if len(base) == len(got):
+                    row["speedup"] = statistics.median(
+                        r["episodes_per_min"] / b["episodes_per_min"]
+                        for r, b in zip(got, base, strict=True)
+                    )
+            rows.append(row)
+    return {
+        "task": bench_record.RECORD_TASK,
+        "episodes": episodes,
+        "size": list(size),
+        "workers": workers,
+        "ray": ray,
+        "repeats": repeats,
+        "rows": rows,
+    }
+
+
 def _cpu_name() -> str:
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
@@ -626,6 +762,40 @@ def check_targets(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
             checks.append({"config": name, "figure": "ratio_to_ceiling", "bound": RATIO_TARGET,
                            "kind": "min", "value": ratio, "met": ratio >= RATIO_TARGET})  # fmt: skip
     return checks
+
+
+def check_scaling_target(scaling: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """SPEC section 16: the native vector env's best speedup over one env, state obs."""
+    checks = []
+    for report in scaling:
+        rows = [r for r in report.get("rows", []) if r["mode"] == "native" and r["num_envs"] > 1]
+        if report.get("obs") != "state" or not rows:
+            continue
+        best = max(rows, key=lambda r: r["speedup"])
+        checks.append({"config": f"native_vector_state_{best['num_envs']}", "figure": "speedup",
+                       "bound": VECTOR_SPEEDUP_TARGET, "kind": "min", "value": best["speedup"],
+                       "met": best["speedup"] >= VECTOR_SPEEDUP_TARGET})  # fmt: skip
+    return checks
+
+
+def format_recording(report: dict[str, Any]) -> str:
+    """The recording throughput as a Markdown table."""
+    header = ["cameras", "recorder", "episodes/min median (min-max)", "speedup", "s per run"]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for r in report["rows"]:
+        cameras = r["camera_config"]
+        if cameras != "none":
+            cameras = f"{cameras} {report['size'][0]}x{report['size'][1]}"
+        if "error" in r:
+            lines.append(f"| {cameras} | {r['recorder']} | failed: {r['error']} | - | - |")
+            continue
+        rate = r["episodes_per_min"]
+        speedup = f"{r['speedup']:.2f}x" if "speedup" in r else "-"
+        lines.append(
+            f"| {cameras} | {r['recorder']} | {_num(rate['median'])} ({_num(rate['min'])}-"
+            f"{_num(rate['max'])}) | {speedup} | {r['seconds']['median']:.1f} |"
+        )
+    return "\n".join(lines)
 
 
 def format_table(results: Sequence[dict[str, Any]]) -> str:
@@ -681,22 +851,67 @@ def run(
     progress: Callable[[str], None] | None = None,
     task: str = DEFAULT_TASK,
     control_mode: str = DEFAULT_CONTROL_MODE,
+    vector_scaling: Sequence[int] = (),
+    vector_obs: Sequence[str] = ("state",),
+    vector_modes: Sequence[str] | None = None,
+    image_size: tuple[int, int] = DEFAULT_IMAGE_SIZE,
+    recording: int = 0,
+    recording_ray: bool = False,
+    recording_episodes: int | None = None,
+    recording_cameras: Sequence[str] | None = None,
 ) -> dict[str, Any]:
     """Measure ``configs`` and return the whole report (what ``--json`` writes).
 
+    Args:
+        configs: configuration names (may be empty when ``vector_scaling`` or
+            ``recording`` is asked for).
+        vector_scaling: ``num_envs`` counts of the vector scaling (none: not measured).
+        vector_obs: ``"state"`` or camera configs, each measured at every count.
+        vector_modes: vector envs compared (default: native, async and sync).
+        image_size: (height, width) of the camera configs of the scaling and recording.
+        recording: worker count of the recording throughput (0: not measured).
+        recording_ray: also record as Ray tasks on a local cluster.
+        recording_episodes: episodes per recording.
+        recording_cameras: ``"none"`` or camera configs, each recorded.
+
     Raises:
         ValueError: a configuration name or the control mode is unknown, or
-            seconds/repeats/processes are out of range.
+            seconds/repeats/processes or the scaling/recording options are out of range.
     """
+    from gym_soarm.tools import bench_record, bench_vector
+
     parsed = [BenchConfig.parse(name, task, control_mode) for name in configs]
-    if not parsed:
+    vector_modes = tuple(vector_modes or bench_vector.VECTOR_MODES)
+    recording_cameras = tuple(recording_cameras or bench_record.DEFAULT_CAMERAS)
+    if recording_episodes is None:
+        recording_episodes = bench_record.DEFAULT_EPISODES
+    if not parsed and not vector_scaling and not recording:
         raise ValueError("configs must name at least one configuration")
+    if vector_scaling and min(vector_scaling) < 1:
+        raise ValueError(f"vector scaling counts must be at least 1; got {list(vector_scaling)}")
+    unknown = [m for m in vector_modes if m not in bench_vector.VECTOR_MODES]
+    if unknown:
+        raise ValueError(
+            f"vector modes must be among {', '.join(bench_vector.VECTOR_MODES)}; got {unknown}"
+        )
+    if not vector_obs:
+        raise ValueError("vector obs must name 'state' or a camera config")
+    if min(image_size) < 2 or any(v % 2 for v in image_size):
+        raise ValueError(f"image size must be even and positive; got {image_size!r}")
+    if recording < 0 or recording_episodes < 1:
+        raise ValueError(
+            f"recording workers must be >= 0 and episodes >= 1; got {recording!r}, "
+            f"{recording_episodes!r}"
+        )
     if not (math.isfinite(seconds) and seconds > 0):
         raise ValueError(f"seconds must be a positive number; got {seconds!r}")
     if repeats < 1:
         raise ValueError(f"repeats must be at least 1; got {repeats!r}")
     if processes < 1:
         raise ValueError(f"processes must be at least 1; got {processes!r}")
+    from gym_soarm.tasks import get_task
+
+    task_name = get_task(task).name
     say = progress or (lambda _message: None)
     load_start = os.getloadavg() if hasattr(os, "getloadavg") else None
     started = time.time()
@@ -716,6 +931,32 @@ def run(
                 cold.append(_one_shot(job, 300))
             except (RuntimeError, subprocess.TimeoutExpired, OSError) as exc:
                 cold.append({"visual": visual, "error": str(exc)})
+    scaling = [
+        measure_vector_scaling(
+            counts=vector_scaling,
+            obs=obs,
+            size=image_size,
+            seconds=seconds,
+            repeats=repeats,
+            task=task,
+            modes=vector_modes,
+            progress=say,
+        )
+        for obs in (vector_obs if vector_scaling else ())
+    ]
+    recorded = (
+        measure_recording(
+            recording,
+            recording_ray,
+            recording_episodes,
+            recording_cameras,
+            image_size,
+            repeats,
+            progress=say,
+        )
+        if recording
+        else None
+    )
     first = next((r for r in results if "error" not in r), {})
     renderer = next((r["gl_renderer"] for r in results if r.get("gl_renderer")), None)
     return {
@@ -731,17 +972,25 @@ def run(
         },
         "versions": {"gym_soarm": first.get("gym_soarm"), "mujoco": first.get("mujoco")},
         "settings": {
-            "task": parsed[0].task,
+            "task": task_name,
             "control_mode": control_mode,
             "seconds": seconds,
             "repeats": repeats,
             "processes": processes,
+            "vector_scaling": list(vector_scaling),
+            "recording_workers": recording,
             "started_unix": started,
             "duration_s": time.time() - started,
         },
         "configs": results,
         "cold_make": cold,
-        "targets": check_targets(results) if control_mode == DEFAULT_CONTROL_MODE else [],
+        "vector_scaling": scaling,
+        "recording": recorded,
+        "targets": (
+            check_targets(results) + check_scaling_target(scaling)
+            if control_mode == DEFAULT_CONTROL_MODE
+            else []
+        ),
     }
 
 
@@ -757,9 +1006,49 @@ def _worker_main(job_text: str) -> None:
         out = _measure_vector(config, job["seconds"], job["repeats"], job["processes"])
     elif kind == "cold_make":
         out = _measure_cold_make(job["visual"], job["task"])
+    elif kind == "vector_scaling":
+        from gym_soarm.tools import bench_vector
+
+        out = bench_vector.measure(
+            job["env_id"],
+            job["counts"],
+            job["obs"],
+            tuple(job["size"]),
+            job["seconds"],
+            job["repeats"],
+            modes=job["modes"],
+        )
+    elif kind == "recording":
+        from gym_soarm.tools import bench_record
+
+        out = bench_record.record_once(
+            job["camera_config"],
+            tuple(job["size"]),
+            job["episodes"],
+            job["workers"],
+            job["ray_address"],
+        )
     else:
         raise ValueError(f"unknown worker job {kind!r}")
     _emit("RESULT", out)
+
+
+def _print_scale(report: dict[str, Any]) -> None:
+    from gym_soarm.tools import bench_vector
+
+    for scaling in report["vector_scaling"]:
+        if "error" in scaling:
+            print(f"\nvector scaling ({scaling['obs']}): failed: {scaling['error']}")
+            continue
+        print(f"\nvector scaling, {bench_vector.title(scaling)}")
+        print(bench_vector.format_table(scaling))
+    recording = report["recording"]
+    if recording is not None:
+        print(
+            f"\nrecording {recording['episodes']} {recording['task']} episodes "
+            f"(whole record() call, start-up included; medians of {recording['repeats']})"
+        )
+        print(format_recording(recording))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -807,12 +1096,68 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="the control mode to measure, with random actions of its own action space: "
         "joint_pos, joint_delta, ee_delta or ee_pose (default: %(default)s)",
     )
+    parser.add_argument(
+        "--vector-scaling",
+        default="",
+        metavar="COUNTS",
+        help="also measure vector envs (native threads, AsyncVectorEnv, SyncVectorEnv) at "
+        "these comma-separated num_envs, e.g. 1,2,4,8,16, against one env",
+    )
+    parser.add_argument(
+        "--vector-obs",
+        default="state",
+        help="observations of --vector-scaling: comma-separated 'state' and camera configs, "
+        "e.g. state,front_wrist (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--vector-modes",
+        default="native,async,sync",
+        help="vector envs of --vector-scaling (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--image-size",
+        default="96x128",
+        metavar="HxW",
+        help="image size of the cameras of --vector-obs and --recording-cameras "
+        "(default: %(default)s)",
+    )
+    parser.add_argument(
+        "--recording",
+        type=int,
+        default=0,
+        metavar="WORKERS",
+        help="also measure recording throughput (episodes/min) with 1 and WORKERS processes",
+    )
+    parser.add_argument(
+        "--recording-ray",
+        action="store_true",
+        help="with --recording, also record as Ray tasks on a local cluster (needs ray)",
+    )
+    parser.add_argument(
+        "--recording-episodes",
+        type=int,
+        default=6,
+        help="LiftCube-v0 episodes per recording (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--recording-cameras",
+        default="none,front_wrist",
+        help="camera configs recorded, 'none' for state only (default: %(default)s)",
+    )
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker:
         _worker_main(args.worker)
         return 0
     configs = [c.strip() for c in args.configs.split(",") if c.strip()]
+    try:
+        counts = [int(c) for c in args.vector_scaling.split(",") if c.strip()]
+        height, width = (int(v) for v in args.image_size.lower().split("x"))
+    except ValueError:
+        parser.error(
+            "--vector-scaling must be comma-separated integers and --image-size HEIGHTxWIDTH; "
+            f"got {args.vector_scaling!r} and {args.image_size!r}"
+        )
     try:
         report = run(
             configs,
@@ -822,21 +1167,33 @@ def main(argv: Sequence[str] | None = None) -> int:
             progress=lambda m: print(m, file=sys.stderr, flush=True),
             task=args.task,
             control_mode=args.control_mode,
+            vector_scaling=counts,
+            vector_obs=[o.strip() for o in args.vector_obs.split(",") if o.strip()],
+            vector_modes=[m.strip() for m in args.vector_modes.split(",") if m.strip()],
+            image_size=(height, width),
+            recording=args.recording,
+            recording_ray=args.recording_ray,
+            recording_episodes=args.recording_episodes,
+            recording_cameras=[c.strip() for c in args.recording_cameras.split(",") if c.strip()],
         )
     except ValueError as exc:
         parser.error(str(exc))
     machine = report["machine"]
-    print(
-        f"\n{machine['cpu']} ({machine['cpu_count']} cores), GL: {machine['gl_backend']} "
-        f"({machine['gl_renderer']}), load average {machine['load_average_start']}, "
-        f"control mode {report['settings']['control_mode']}"
+    gl = (
+        f", GL: {machine['gl_backend']} ({machine['gl_renderer']})" if machine["gl_backend"] else ""
     )
-    print(format_table(report["configs"]))
+    print(
+        f"\n{machine['cpu']} ({machine['cpu_count']} cores){gl}, load average "
+        f"{machine['load_average_start']}, control mode {report['settings']['control_mode']}"
+    )
+    if report["configs"]:
+        print(format_table(report["configs"]))
     for cold in report["cold_make"]:
         if "error" in cold:
             print(f"cold make ({cold['visual']}): failed: {cold['error']}")
         else:
             print(f"cold make ({cold['visual']} meshes, empty cache): {cold['make_s']:.2f} s")
+    _print_scale(report)
     for check in report["targets"]:
         sign = ">=" if check["kind"] == "min" else "<"
         status = "met" if check["met"] else "NOT met"
@@ -846,7 +1203,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     Path(args.json).write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
     print(f"wrote {args.json}")
-    failed = any("error" in r for r in report["configs"])
+    failed = any("error" in r for r in report["configs"] + report["vector_scaling"])
+    if report["recording"] is not None:
+        failed = failed or any("error" in r for r in report["recording"]["rows"])
     return 1 if failed else 0
 
 

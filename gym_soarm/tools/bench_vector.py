@@ -1,11 +1,20 @@
-"""Scaling of the native vector env: aggregate steps/s for several ``num_envs``.
+"""Scaling of vector environments: aggregate steps/s for several ``num_envs``.
 
-Run ``python -m gym_soarm.tools.bench_vector --num-envs 1,2,4,8,16``. Each round
-measures one ``gym.make`` environment (the baseline) and then the native vector env
-(``vectorization_mode="vector_entry_point"``) at every ``num_envs``, with random actions
-from a seeded generator; rounds alternate so that every figure sees the same machine
-load, and the medians over rounds are reported. ``speedup`` is the vector env's
-aggregate steps/s over the single environment's, from the same rounds.
+``python -m gym_soarm.bench --vector-scaling 1,2,4,8,16`` reports it (this module
+measures it; ``python -m gym_soarm.tools.bench_vector`` runs it alone). For each
+``num_envs`` the same environment is built as one ``gym.make`` environment (the
+baseline) and as each vector env:
+
+* ``native``: ``gym.make_vec(..., vectorization_mode="vector_entry_point")``, the
+  threads of :class:`gym_soarm.vector.SoArmVectorEnv`;
+* ``async``: ``gymnasium.vector.AsyncVectorEnv``, one process per environment
+  (``forkserver`` context);
+* ``sync``: ``gymnasium.vector.SyncVectorEnv``, every environment in turn in this thread.
+
+They are stepped with random actions from a seeded generator in rounds that take each
+of them in turn (so every figure sees the same machine load), and the medians over
+rounds are reported. ``speedup`` is the median over rounds of a vector env's aggregate
+steps/s over the single environment's in the same round.
 """
 
 from __future__ import annotations
@@ -25,9 +34,13 @@ import numpy as np
 import gym_soarm  # noqa: F401  (registers the environments)
 
 DEFAULT_ENV_ID = "gym_soarm/LiftCube-v0"
+VECTOR_MODES: tuple[str, ...] = ("native", "async", "sync")
+DEFAULT_SIZE = (96, 128)  # (height, width) of camera observations
+N_ACTIONS = 64  # random actions (or batches) drawn up front and cycled
 
 
-def _env_kwargs(obs: str, size: tuple[int, int]) -> dict[str, Any]:
+def env_kwargs(obs: str, size: tuple[int, int] = DEFAULT_SIZE) -> dict[str, Any]:
+    """``gym.make`` keywords of ``obs``: ``"state"`` or a camera config at ``size`` (h, w)."""
     if obs == "state":
         return {"obs_type": "environment_state_agent_pos"}
     return {
@@ -38,94 +51,182 @@ def _env_kwargs(obs: str, size: tuple[int, int]) -> dict[str, Any]:
     }
 
 
+def make_vector(
+    env_id: str, num_envs: int, mode: str, kwargs: dict[str, Any], num_threads: int | None = None
+) -> gym.vector.VectorEnv:
+    """A vector env of ``mode`` (one of :data:`VECTOR_MODES`) over ``num_envs`` environments.
+
+    Raises:
+        ValueError: an unknown ``mode``.
+    """
+    if mode == "native":
+        return gym.make_vec(
+            env_id,
+            num_envs=num_envs,
+            vectorization_mode="vector_entry_point",
+            num_threads=num_threads,
+            **kwargs,
+        )
+    if mode == "async":
+        return gym.make_vec(
+            env_id,
+            num_envs=num_envs,
+            vectorization_mode="async",
+            vector_kwargs={"context": "forkserver"},
+            **kwargs,
+        )
+    if mode == "sync":
+        return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="sync", **kwargs)
+    raise ValueError(f"mode must be one of {', '.join(VECTOR_MODES)}; got {mode!r}.")
+
+
 def single_rate(env: gym.Env, actions: np.ndarray, seconds: float) -> float:
-    """Steps/s of one environment stepped for about ``seconds``."""
+    """Steps/s of one environment stepped for about ``seconds`` (at least one step)."""
     steps = 0
     started = time.perf_counter()
-    while time.perf_counter() - started < seconds:
-        for action in actions:
-            _, _, terminated, truncated, _ = env.step(action)
-            if terminated or truncated:
-                env.reset()
-        steps += len(actions)
+    deadline = started + seconds
+    while True:
+        _, _, terminated, truncated, _ = env.step(actions[steps % len(actions)])
+        steps += 1
+        if terminated or truncated:
+            env.reset()
+        if time.perf_counter() >= deadline:
+            break
     return steps / (time.perf_counter() - started)
 
 
 def vector_rate(envs: gym.vector.VectorEnv, actions: np.ndarray, seconds: float) -> float:
     """Aggregate steps/s of a vector env (its autoreset starts new episodes)."""
-    steps = 0
+    batches = 0
     started = time.perf_counter()
-    while time.perf_counter() - started < seconds:
-        for batch in actions:
-            envs.step(batch)
-        steps += len(actions) * envs.num_envs
-    return steps / (time.perf_counter() - started)
+    deadline = started + seconds
+    while True:
+        envs.step(actions[batches % len(actions)])
+        batches += 1
+        if time.perf_counter() >= deadline:
+            break
+    return batches * envs.num_envs / (time.perf_counter() - started)
+
+
+def _spread(values: Sequence[float]) -> dict[str, Any]:
+    return {
+        "median": statistics.median(values),
+        "min": min(values),
+        "max": max(values),
+        "repeats": list(values),
+    }
 
 
 def measure(
     env_id: str,
     num_envs: Sequence[int],
     obs: str = "state",
-    size: tuple[int, int] = (48, 64),
+    size: tuple[int, int] = DEFAULT_SIZE,
     seconds: float = 1.0,
     rounds: int = 3,
     num_threads: int | None = None,
+    modes: Sequence[str] = VECTOR_MODES,
 ) -> dict[str, Any]:
-    """Median steps/s of one env and of the vector env at each ``num_envs``.
+    """Steps/s of one env and of each vector env of ``modes`` at each ``num_envs``.
+
+    The vector envs of one count are built together, measured in alternating rounds
+    with the single environment, and closed before the next count.
 
     Raises:
-        ValueError: an empty ``num_envs`` or a count below 1.
+        ValueError: an empty ``num_envs``, a count below 1 or an unknown mode.
     """
     if not num_envs or min(num_envs) < 1:
         raise ValueError(f"num_envs must list counts >= 1; got {list(num_envs)!r}.")
-    kwargs = _env_kwargs(obs, size)
+    unknown = [m for m in modes if m not in VECTOR_MODES]
+    if unknown or not modes:
+        raise ValueError(f"modes must be among {', '.join(VECTOR_MODES)}; got {list(modes)!r}.")
+    kwargs = env_kwargs(obs, size)
+    load_start = os.getloadavg() if hasattr(os, "getloadavg") else None
     single = gym.make(env_id, **kwargs)
     single.reset(seed=0)
     rng = np.random.default_rng(0)
     low, high = single.action_space.low, single.action_space.high
-    single_actions = rng.uniform(low, high, (50, 6)).astype(np.float32)
-    vectors = {}
-    for n in num_envs:
-        envs = gym.make_vec(
-            env_id,
-            num_envs=n,
-            vectorization_mode="vector_entry_point",
-            num_threads=num_threads,
-            **kwargs,
-        )
-        envs.reset(seed=0)
-        vectors[n] = (envs, rng.uniform(low, high, (max(1, 200 // n), n, 6)).astype(np.float32))
-    rates: dict[str, list[float]] = {"single": []} | {str(n): [] for n in num_envs}
+    single_actions = rng.uniform(low, high, (N_ACTIONS, len(low))).astype(np.float32)
+    single_rates: list[float] = []
+    rows: list[dict[str, Any]] = []
     try:
-        for _ in range(rounds):
-            rates["single"].append(single_rate(single, single_actions, seconds))
-            for n, (envs, actions) in vectors.items():
-                rates[str(n)].append(vector_rate(envs, actions, seconds))
+        for n in num_envs:
+            batches = rng.uniform(low, high, (N_ACTIONS, n, len(low))).astype(np.float32)
+            vectors: dict[str, gym.vector.VectorEnv] = {}
+            rates: dict[str, list[float]] = {"single": []} | {m: [] for m in modes}
+            try:
+                for mode in modes:
+                    vectors[mode] = make_vector(env_id, n, mode, kwargs, num_threads)
+                    vectors[mode].reset(seed=0)
+                    vectors[mode].step(batches[0])  # warm up (GL contexts, pipes)
+                order = ["single", *modes]
+                for round_index in range(rounds):
+                    shift = round_index % len(order)  # nobody always goes first
+                    for name in order[shift:] + order[:shift]:
+                        if name == "single":
+                            rates[name].append(single_rate(single, single_actions, seconds))
+                        else:
+                            rates[name].append(vector_rate(vectors[name], batches, seconds))
+            finally:
+                for envs in vectors.values():
+                    envs.close()
+            single_rates.extend(rates["single"])
+            for mode in modes:
+                rows.append(
+                    {
+                        "mode": mode,
+                        "num_envs": n,
+                        "steps_per_s": _spread(rates[mode]),
+                        "single_steps_per_s": statistics.median(rates["single"]),
+                        "speedup": statistics.median(
+                            v / s for v, s in zip(rates[mode], rates["single"], strict=True)
+                        ),
+                    }
+                )
     finally:
         single.close()
-        for envs, _ in vectors.values():
-            envs.close()
-    base = statistics.median(rates["single"])
-    rows = []
-    for n in num_envs:
-        median = statistics.median(rates[str(n)])
-        rows.append(
-            {
-                "num_envs": n,
-                "steps_per_s": median,
-                "min": min(rates[str(n)]),
-                "max": max(rates[str(n)]),
-                "speedup": median / base,
-            }
-        )
     return {
         "env_id": env_id,
         "obs": obs,
+        "size": list(size) if obs != "state" else None,
+        "modes": list(modes),
+        "num_threads": num_threads,
+        "seconds": seconds,
+        "rounds": rounds,
         "cpus": os.cpu_count(),
-        "load_average": os.getloadavg() if hasattr(os, "getloadavg") else None,
-        "single_steps_per_s": base,
-        "vector": rows,
+        "load_average_start": load_start,
+        "load_average_end": os.getloadavg() if hasattr(os, "getloadavg") else None,
+        "single_steps_per_s": statistics.median(single_rates),
+        "rows": rows,
     }
+
+
+def format_table(report: dict[str, Any]) -> str:
+    """One scaling report as a Markdown table: a row per count, a column pair per mode."""
+    modes = report["modes"]
+    header = ["num_envs", *(f"{m} steps/s (speedup)" for m in modes)]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    by_key = {(r["mode"], r["num_envs"]): r for r in report["rows"]}
+    for n in sorted({r["num_envs"] for r in report["rows"]}):
+        cells = [str(n)]
+        for mode in modes:
+            row = by_key[(mode, n)]
+            cells.append(f"{row['steps_per_s']['median']:,.0f} ({row['speedup']:.2f}x)")
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def title(report: dict[str, Any]) -> str:
+    """What a scaling report measured, in one line."""
+    obs = report["obs"]
+    if report.get("size"):
+        obs = f"{obs} {report['size'][0]}x{report['size'][1]}"
+    load = report["load_average_start"]
+    load_text = "" if load is None else f", load average {load[0]:.1f}"
+    return (
+        f"{report['env_id']}, {obs}: one env {report['single_steps_per_s']:,.0f} steps/s "
+        f"({report['cpus']} cores{load_text})"
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -134,10 +235,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--env-id", default=DEFAULT_ENV_ID)
     parser.add_argument("--num-envs", default="1,2,4,8,16", help="counts, comma-separated")
     parser.add_argument("--obs", default="state", help="'state' or a camera config")
-    parser.add_argument("--size", default="48x64", help="image HEIGHTxWIDTH for pixels")
+    parser.add_argument("--size", default="96x128", help="image HEIGHTxWIDTH for pixels")
+    parser.add_argument("--modes", default=",".join(VECTOR_MODES), help="vector envs measured")
     parser.add_argument("--seconds", type=float, default=1.0, help="seconds per measurement")
     parser.add_argument("--rounds", type=int, default=3, help="alternating rounds (medians)")
-    parser.add_argument("--threads", type=int, default=None, help="worker threads")
+    parser.add_argument("--threads", type=int, default=None, help="native env's threads")
     parser.add_argument("--json", default=None, help="write the figures to this file")
     args = parser.parse_args(argv)
     try:
@@ -148,17 +250,21 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"--num-envs must be comma-separated ints and --size HEIGHTxWIDTH; got "
             f"{args.num_envs!r} and {args.size!r}"
         )
-    report = measure(
-        args.env_id, counts, args.obs, (height, width), args.seconds, args.rounds, args.threads
-    )
-    lines = [f"single env: {report['single_steps_per_s']:,.0f} steps/s ({report['obs']})"]
-    lines.append("num_envs | steps/s median (min-max) | speedup")
-    for row in report["vector"]:
-        lines.append(
-            f"{row['num_envs']:>8} | {row['steps_per_s']:,.0f} ({row['min']:,.0f}-"
-            f"{row['max']:,.0f}) | {row['speedup']:.2f}x"
+    modes = [m.strip() for m in args.modes.split(",") if m.strip()]
+    try:
+        report = measure(
+            args.env_id,
+            counts,
+            args.obs,
+            (height, width),
+            args.seconds,
+            args.rounds,
+            args.threads,
+            modes,
         )
-    sys.stdout.write("\n".join(lines) + "\n")
+    except ValueError as exc:
+        parser.error(str(exc))
+    sys.stdout.write(title(report) + "\n" + format_table(report) + "\n")
     if args.json:
         with open(args.json, "w", encoding="utf-8") as file:
             json.dump(report, file, indent=2)
