@@ -5,10 +5,13 @@ Speed itself is never asserted here: the benchmark measures it.
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import subprocess
 import sys
+from pathlib import Path
 
+import cv2
 import mujoco
 import numpy as np
 import pytest
@@ -55,7 +58,17 @@ def test_short_benchmark_run_reports_every_field(tmp_path):
     assert "target state steps_per_s >= 4000" in proc.stdout
 
     report = json.loads(out.read_text())
-    assert set(report) == {"machine", "versions", "settings", "configs", "cold_make", "targets"}
+    assert set(report) == {
+        "machine",
+        "versions",
+        "settings",
+        "configs",
+        "cold_make",
+        "vector_scaling",
+        "recording",
+        "targets",
+    }
+    assert report["vector_scaling"] == [] and report["recording"] is None
     assert report["machine"]["cpu_count"] >= 1
     assert report["machine"]["gl_backend"] in ("egl", "osmesa", "glfw")
     assert report["machine"]["gl_renderer"]
@@ -97,6 +110,83 @@ def test_short_benchmark_run_reports_every_field(tmp_path):
         assert isinstance(target["met"], bool) and target["value"] > 0
 
 
+def _bench(args: list[str], timeout: float = 300) -> subprocess.CompletedProcess:
+    proc = subprocess.run(
+        [sys.executable, "-m", "gym_soarm.bench", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return proc
+
+
+def test_vector_scaling_compares_the_three_vector_envs_and_is_plotted(tmp_path):
+    out = tmp_path / "scaling.json"
+    proc = _bench(
+        ["--configs", "", "--vector-scaling", "1,2", "--vector-obs", "state,front_wrist",
+         "--image-size", "48x64", "--seconds", "0.1", "--repeats", "2", "--json", str(out)]
+    )  # fmt: skip
+    assert "| num_envs | native steps/s (speedup) | async steps/s (speedup) |" in proc.stdout
+    assert "target native_vector_state_" in proc.stdout
+
+    report = json.loads(out.read_text())
+    assert report["configs"] == [] and report["recording"] is None
+    assert report["settings"]["vector_scaling"] == [1, 2]
+    state, pixels = report["vector_scaling"]
+    assert (state["obs"], state["size"]) == ("state", None)
+    assert (pixels["obs"], pixels["size"]) == ("front_wrist", [48, 64])
+    for scaling in (state, pixels):
+        assert scaling["modes"] == ["native", "async", "sync"]
+        assert scaling["single_steps_per_s"] > 0
+        assert [(r["mode"], r["num_envs"]) for r in scaling["rows"]] == [
+            (mode, n) for n in (1, 2) for mode in ("native", "async", "sync")
+        ]
+        for row in scaling["rows"]:
+            _check_spread(row["steps_per_s"], 2)
+            assert row["speedup"] > 0 and row["single_steps_per_s"] > 0
+    (target,) = [t for t in report["targets"] if t["figure"] == "speedup"]
+    assert target["bound"] == 1.7 and target["value"] > 0 and isinstance(target["met"], bool)
+
+    picture = tmp_path / "scaling.png"
+    script = Path(__file__).resolve().parents[1] / "scripts" / "make_vector_scaling_plot.py"
+    subprocess.run(
+        [sys.executable, str(script), str(out), "--out", str(picture)], check=True, timeout=60
+    )
+    image = cv2.imread(str(picture))
+    assert image.shape[:2] == (420 + 30, 2 * 520)  # two panels above a legend
+    assert (image < 128).any() and (image == 255).any()
+
+
+def test_recording_throughput_counts_the_episodes_of_each_recorder(tmp_path):
+    out = tmp_path / "recording.json"
+    ray = importlib.util.find_spec("ray") is not None  # the ray extra
+    proc = _bench(
+        ["--configs", "", "--recording", "2", "--recording-episodes", "2",
+         "--recording-cameras", "none,front_only", "--image-size", "48x64",
+         "--repeats", "1", "--json", str(out), *(["--recording-ray"] if ray else [])]
+    )  # fmt: skip
+    assert "| none | 2 workers |" in proc.stdout
+
+    recording = json.loads(out.read_text())["recording"]
+    assert recording["task"] == "LiftCube-v0" and recording["episodes"] == 2
+    assert recording["ray"] is ray
+    recorders = [("1 process", 1, False), ("2 workers", 2, False)]
+    recorders += [("Ray local (2)", 2, True)] if ray else []
+    rows = [(r["camera_config"], r["recorder"], r["workers"], r["ray"]) for r in recording["rows"]]
+    assert rows == [
+        (camera, *recorder) for camera in ("none", "front_only") for recorder in recorders
+    ]
+    for row in recording["rows"]:
+        assert row["episodes"] == row["dataset_episodes"] == [2]
+        assert row["frames"] == row["dataset_frames"] and row["frames"][0] > 0
+        _check_spread(row["episodes_per_min"], 1)
+        assert row["speedup"] > 0 and row["bytes_on_disk"] > 0
+    none, camera = recording["rows"][0], recording["rows"][len(recorders)]
+    assert camera["bytes_on_disk"] > none["bytes_on_disk"]  # the videos
+
+
 @pytest.mark.parametrize(
     "name, expected",
     [
@@ -124,6 +214,12 @@ def test_configuration_names(name, expected):
         (["--configs", "state", "--seconds", "0"], "seconds must be a positive number"),
         (["--configs", "state", "--repeats", "0"], "repeats must be at least 1"),
         (["--configs", "state", "--processes", "0"], "processes must be at least 1"),
+        (["--configs", ""], "configs must name at least one configuration"),
+        (["--vector-scaling", "0,2"], "vector scaling counts must be at least 1"),
+        (["--vector-scaling", "2", "--vector-modes", "forked"], "vector modes must be among"),
+        (["--vector-scaling", "two"], "--vector-scaling must be comma-separated integers"),
+        (["--recording", "2", "--image-size", "47x64"], "image size must be even"),
+        (["--recording", "2", "--recording-episodes", "0"], "recording workers must be >= 0"),
     ],
 )
 def test_bad_options_are_refused_before_measuring(argv, fragment, capsys, tmp_path):
