@@ -39,7 +39,8 @@ def pixels_config(task: str, **fields) -> SoArmEnvConfig:
 
 
 def test_a_suite_gives_one_vector_env_per_task_in_its_group():
-    envs = make_env(pixels_config("soarm_core,soarm_language,StackCube-v0"), n_envs=2)
+    config = pixels_config("soarm_core,soarm_language,StackCube-v0", vector_env="native")
+    envs = make_env(config, n_envs=2)
     try:
         assert list(envs) == ["soarm_core", "soarm_language", "soarm"]
         assert list(envs["soarm_core"]) == [0, 1, 2, 3]
@@ -56,6 +57,26 @@ def test_a_suite_gives_one_vector_env_per_task_in_its_group():
         for group in envs.values():
             for vector in group.values():
                 vector.close()
+
+
+@pytest.mark.parametrize(
+    ("obs_type", "n_envs", "use_async_envs", "expected"),
+    [
+        ("environment_state_agent_pos", 2, True, "SoArmVectorEnv"),
+        ("environment_state_agent_pos", 1, True, "SyncVectorEnv"),
+        ("pixels_agent_pos", 2, True, "AsyncVectorEnv"),
+        ("pixels_agent_pos", 2, False, "SyncVectorEnv"),
+    ],
+)
+def test_auto_picks_the_fastest_vector_env_measured(obs_type, n_envs, use_async_envs, expected):
+    config = pixels_config("LiftCube-v0", obs_type=obs_type)
+    vector = make_env(config, n_envs=n_envs, use_async_envs=use_async_envs)["soarm"][0]
+    try:
+        assert type(vector).__name__ == expected
+        obs, _ = vector.reset(seed=[EVAL_SEED + k for k in range(n_envs)])
+        assert obs["agent_pos"].shape == (n_envs, 6)
+    finally:
+        vector.close()
 
 
 def test_the_robust_suite_randomises_and_one_env_is_a_sync_vector_env():

@@ -101,9 +101,10 @@ class SoArmEnvConfig(EnvConfig):
         vector_env: how ``create_envs`` batches ``n_envs`` environments: ``"native"``
             (gym_soarm's threaded vector env, :class:`gym_soarm.vector.SoArmVectorEnv`),
             ``"async"`` (Gymnasium's ``AsyncVectorEnv``, one process per environment),
-            ``"sync"`` (``SyncVectorEnv``), or ``"auto"`` (default): native for more
-            than one environment, where it is the fastest (README, "Vector
-            environments"), sync for one.
+            ``"sync"`` (``SyncVectorEnv``), or ``"auto"`` (default), the fastest measured
+            on two cores (README, "Vector envs and recording at scale"): native with
+            state observations, LeRobot's own choice with cameras (``AsyncVectorEnv``
+            under ``--eval.use_async_envs``, its default), sync for one environment.
         calibration: with LeRobot units, the path of a real SO-101 follower's
             calibration JSON, so the env speaks that arm's values (see
             :mod:`gym_soarm.calibration`); None for the fixed maps.
@@ -219,11 +220,12 @@ class SoArmEnvConfig(EnvConfig):
     ) -> dict[str, dict[int, gym.vector.VectorEnv]]:
         """``{group: {task_index: VectorEnv}}`` of ``n_envs`` environments per selected task.
 
-        ``use_async_envs`` (``lerobot-eval --eval.use_async_envs``) chooses
-        ``AsyncVectorEnv`` only when ``vector_env="async"`` or when
-        ``vector_env="auto"`` falls back to Gymnasium's vector envs, which it does not
-        for gym_soarm's own tasks: their native vector env is faster (threads share
-        one process, no pipes).
+        With ``vector_env="auto"``: one environment is a ``SyncVectorEnv``; several with
+        state observations step in gym_soarm's native threaded vector env (no pipes:
+        1.4x to 2.4x ``AsyncVectorEnv``'s steps/s on two cores); several with cameras
+        follow ``use_async_envs`` (``lerobot-eval --eval.use_async_envs``, default
+        true): ``AsyncVectorEnv`` renders in separate processes, which on two cores
+        matched the native env at two environments and beat it from four.
         """
         n_envs = check_int("n_envs", n_envs, 1)
         envs: dict[str, dict[int, gym.vector.VectorEnv]] = {}
@@ -250,7 +252,12 @@ class SoArmEnvConfig(EnvConfig):
         kwargs = self.task_kwargs(item)
         mode = self.vector_env
         if mode == "auto":
-            mode = "native" if n_envs > 1 else "sync"
+            if n_envs == 1:
+                mode = "sync"
+            elif self.obs_type == "environment_state_agent_pos":
+                mode = "native"
+            else:
+                mode = "async" if use_async_envs else "sync"
         if mode == "native":
             return gym.make_vec(
                 env_id,
