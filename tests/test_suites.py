@@ -19,6 +19,7 @@ from gym_soarm.tasks.suites import (
     get_suite,
     resolve_selection,
     selection_tasks,
+    shared_state_names,
 )
 
 CORE = ("ReachTarget-v0", "LiftCube-v0", "PickAndPlaceCube-v0", "PushCube-v0")
@@ -143,10 +144,16 @@ def test_robust_suite_episodes_carry_their_randomisation(tmp_path):
 
 def test_a_stateless_multi_task_dataset_needs_one_state_layout(tmp_path):
     root = tmp_path / "refused"
-    with pytest.raises(ValueError, match="layout differs") as raised:
+    with pytest.raises(ValueError, match="one layout for every selected task") as raised:
         record(root, task="soarm_core", episodes=1, camera_config="none")
-    assert "LiftCube-v0 (10 values)" in str(raised.value)
+    assert "LiftCube-v0 (cube_x" in str(raised.value)
+    # The same size is not enough: 13 values each, but a goal and a target mean other things.
+    with pytest.raises(ValueError, match="they differ"):
+        record(root, task="PickAndPlaceCube-v0,PushCube-v0", episodes=1, camera_config="none")
     assert not root.exists()
+    # One task under two suites' settings shares its layout.
+    names = shared_state_names(resolve_selection("LiftCube-v0,soarm_robust")[:2])
+    assert names[0] == "cube_x"
 
 
 def test_the_record_cli_takes_a_suite_and_refuses_an_unknown_one(tmp_path, capsys):

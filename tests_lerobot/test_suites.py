@@ -116,10 +116,20 @@ def test_the_native_vector_env_gives_the_async_env_episodes():
 def test_state_policies_need_one_state_layout():
     with pytest.raises(ValueError, match="one task at a time"):
         SoArmEnvConfig(task="soarm_core", obs_type="environment_state_agent_pos")
+    with pytest.raises(ValueError, match="they differ"):  # 13 values each, other meanings
+        SoArmEnvConfig(
+            task="PickAndPlaceCube-v0,PushCube-v0", obs_type="environment_state_agent_pos"
+        )
     with pytest.raises(ValueError, match="soarm_core"):
         SoArmEnvConfig(task="soarm_cor")
     with pytest.raises(ValueError, match="vector_env must be one of"):
         SoArmEnvConfig(vector_env="processes")
+
+
+def test_the_protocol_seed_is_lerobot_evals_default():
+    from lerobot.configs.eval import EvalPipelineConfig
+
+    assert EvalPipelineConfig.__dataclass_fields__["seed"].default == EVAL_SEED
 
 
 def test_lerobot_loads_a_multi_task_dataset(tmp_path):

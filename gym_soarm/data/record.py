@@ -45,7 +45,7 @@ from gym_soarm.control import CONTROL_MODES, action_names
 from gym_soarm.data import LeRobotDatasetWriter
 from gym_soarm.tasks import get_task, lift_cube
 from gym_soarm.tasks.base import TaskSpec
-from gym_soarm.tasks.suites import resolve_selection
+from gym_soarm.tasks.suites import distinct_tasks, resolve_selection, shared_state_names
 from gym_soarm.units import FEATURE_NAMES, joint_units
 from gym_soarm.validation import check_choice, check_int, parse_size, resolve_camera_config
 
@@ -307,7 +307,7 @@ def record(
         ValueError: a bad argument; nothing is written then.
         TypeError: ``wrist_roll_offset_deg`` is not a number; nothing is written then.
     """
-    selected = _selected_tasks(task)
+    selected = distinct_tasks(resolve_selection(task))
     episodes = check_int("episodes", episodes, 1)
     seed = check_int("seed", seed, 0)
     joint_units(units, wrist_roll_offset_deg, calibration)  # checks units, offset, file
@@ -360,16 +360,16 @@ def record(
     started = time.perf_counter()
     # Every task's environment is built (and checked) before anything is written.
     plans: list[AttemptPlan] = []
-    state_names: dict[str, tuple[str, ...]] = {}
     robot_type = "gym_soarm" if units == "radians" else "so101_follower"
-    for spec, suite_variation in selected:
-        env_kwargs = {**variation, **suite_variation, **common_kwargs}
-        env = gym.make(spec.env_id, **env_kwargs)
-        try:
-            if state_only:
-                state_names[spec.name] = tuple(env.unwrapped.state_names)
-        finally:
-            env.close()
+    names = (
+        shared_state_names(tuple(selected), variation.get("object_placement"))
+        if state_only
+        else None
+    )
+    for item in selected:
+        spec = get_task(item.task)
+        env_kwargs = {**variation, **item.variation, **common_kwargs}
+        gym.make(spec.env_id, **env_kwargs).close()  # checks every keyword for this task
         plans.append(
             AttemptPlan(
                 spec=spec,
@@ -385,14 +385,6 @@ def record(
                 state_only=state_only,
             )
         )
-    if len(set(state_names.values())) > 1:
-        listed = ", ".join(f"{name} ({len(names)} values)" for name, names in state_names.items())
-        raise ValueError(
-            "a dataset without cameras records observation.environment_state, whose layout "
-            f"differs between the selected tasks: {listed}. Record these tasks with cameras "
-            "(--camera-config front_wrist), or one task per dataset."
-        )
-    names = next(iter(state_names.values())) if state_only else None
     features = dataset_features(cameras, height, width, names, control_mode)
     plans = [dataclasses.replace(plan, features=features) for plan in plans]
     writer = LeRobotDatasetWriter.create(
@@ -436,16 +428,6 @@ def record(
         interrupted=interrupted,
         tasks=tuple(plan.spec.name for plan in plans),
     )
-
-
-def _selected_tasks(task: str) -> list[tuple[TaskSpec, Mapping[str, Any]]]:
-    """The distinct (task, suite settings) pairs of a selection, in order."""
-    pairs: list[tuple[TaskSpec, Mapping[str, Any]]] = []
-    for item in resolve_selection(task):
-        pair = (get_task(item.task), dict(item.variation))
-        if pair not in pairs:
-            pairs.append(pair)
-    return pairs
 
 
 def _record_task(

@@ -16,7 +16,12 @@ from gym_soarm.control import CONTROL_MODES
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
 from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.distractors import MAX_DISTRACTORS
-from gym_soarm.tasks.suites import TASK_GROUP, SelectedTask, resolve_selection
+from gym_soarm.tasks.suites import (
+    TASK_GROUP,
+    SelectedTask,
+    resolve_selection,
+    shared_state_names,
+)
 from gym_soarm.units import UNITS, check_wrist_roll_offset, joint_units
 from gym_soarm.validation import check_choice, check_int, parse_cameras
 
@@ -25,6 +30,9 @@ OBS_STATE = "observation.state"
 OBS_ENV_STATE = "observation.environment_state"
 OBS_IMAGES = "observation.images"
 OBS_TYPES: tuple[str, ...] = ("pixels_agent_pos", "environment_state_agent_pos", "pixels")
+LEROBOT_BUILDS_SUITES = hasattr(EnvConfig, "create_envs")
+"""Whether this LeRobot's ``make_env`` asks the config for its envs (LeRobot >= 0.6); older
+ones make ``gym_id`` alone, so they can evaluate one task without a suite's settings."""
 VECTOR_ENVS: tuple[str, ...] = ("auto", "native", "async", "sync")
 """Values of ``vector_env``: how ``create_envs`` batches ``n_envs`` environments."""
 
@@ -138,6 +146,12 @@ class SoArmEnvConfig(EnvConfig):
     def __post_init__(self) -> None:
         self.task = check_selection(self.task)
         selected = resolve_selection(self.task)
+        if not LEROBOT_BUILDS_SUITES and (len(selected) > 1 or selected[0].variation):
+            raise ValueError(
+                f"task {self.task!r} selects several tasks or a suite's settings; this LeRobot "
+                "builds one environment per evaluation. Upgrade to LeRobot >= 0.6 (pip install "
+                "'lerobot>=0.6'), or name one task."
+            )
         if self.obs_type not in OBS_TYPES:
             raise ValueError(
                 f"obs_type must be one of {', '.join(OBS_TYPES)}; got {self.obs_type!r}."
@@ -169,7 +183,8 @@ class SoArmEnvConfig(EnvConfig):
             features_map["agent_pos"] = OBS_STATE
         if self.obs_type == "environment_state_agent_pos":
             features["environment_state"] = PolicyFeature(
-                type=FeatureType.ENV, shape=(self._environment_state_size(selected),)
+                type=FeatureType.ENV,
+                shape=(len(shared_state_names(selected, self.object_placement)),),
             )
             features_map["environment_state"] = OBS_ENV_STATE
         else:
@@ -277,22 +292,3 @@ class SoArmEnvConfig(EnvConfig):
         return gym.vector.SyncVectorEnv(
             [make_one] * n_envs, autoreset_mode=gym.vector.AutoresetMode.SAME_STEP
         )
-
-    def _environment_state_size(self, selected: tuple[SelectedTask, ...]) -> int:
-        sizes: dict[str, int] = {}
-        for item in selected:
-            layout = (
-                get_task(item.task)
-                .make_task(item.variation.get("object_placement", self.object_placement))
-                .state_layout
-            )
-            sizes[item.task] = sum(size for _, size in layout)
-        if len(set(sizes.values())) > 1:
-            listed = ", ".join(f"{task} {size}" for task, size in sizes.items())
-            raise ValueError(
-                "obs_type='environment_state_agent_pos' needs one environment-state size "
-                f"for every selected task; {self.task!r} has {listed} values. Evaluate "
-                "state policies one task at a time (--env.task=LiftCube-v0), or use "
-                "obs_type='pixels_agent_pos'."
-            )
-        return next(iter(sizes.values()))

@@ -172,6 +172,40 @@ def resolve_selection(selection: str) -> tuple[SelectedTask, ...]:
     )
 
 
+def distinct_tasks(selected: tuple[SelectedTask, ...]) -> list[SelectedTask]:
+    """The selection without repeats of one task with the same settings, in order."""
+    kept: list[SelectedTask] = []
+    for item in selected:
+        if all((item.task, item.variation) != (seen.task, seen.variation) for seen in kept):
+            kept.append(item)
+    return kept
+
+
+def shared_state_names(
+    selected: tuple[SelectedTask, ...], object_placement: str | None = None
+) -> tuple[str, ...]:
+    """The ``environment_state`` names that every selected task shares.
+
+    One policy (or one dataset) reads ``observation.environment_state`` from all of
+    them, so the layouts must be the same value for value, not only in size.
+
+    Raises:
+        ValueError: the layouts differ; the message lists each task's and the fixes.
+    """
+    names: dict[str, tuple[str, ...]] = {}
+    for item in selected:
+        placement = item.variation.get("object_placement", object_placement)
+        names[item.task] = get_task(item.task).make_task(placement).state_names
+    if len(set(names.values())) > 1:
+        listed = ", ".join(f"{task} ({', '.join(n)})" for task, n in names.items())
+        raise ValueError(
+            "observation.environment_state must have one layout for every selected task; "
+            f"they differ: {listed}. Use cameras (camera_config/obs_type with pixels) for "
+            "several tasks, or one task at a time."
+        )
+    return next(iter(names.values()))
+
+
 def selection_tasks(selection: str) -> tuple[str, ...]:
     """The distinct task names of a selection, in order of first appearance."""
     return tuple(dict.fromkeys(item.task for item in resolve_selection(selection)))
