@@ -375,3 +375,7 @@ def test_speeds_scale_a_motion_into_an_ee_delta_action():
         TeleopSpeeds(linear_m_s=0.6)
     with pytest.raises(ValueError, match="angular_rad_s"):
         TeleopSpeeds(angular_rad_s=0.0)
+    with pytest.raises(ValueError, match="step_s must be above 0"):
+        TeleopSpeeds(step_s=0.0)
+    with pytest.raises(TypeError, match="step_s must be a finite number"):
+        TeleopSpeeds(step_s="x")

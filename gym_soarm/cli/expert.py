@@ -14,20 +14,15 @@ import argparse
 import time
 from collections.abc import Sequence
 
+from gym_soarm.cli.options import task_selection
 from gym_soarm.control import CONTROL_MODES
 from gym_soarm.expert import EpisodeResult, evaluate, evaluate_protocol
 from gym_soarm.tasks import get_task, task_names
-from gym_soarm.tasks.suites import EVAL_SEED, SUITE_NAMES, SelectedTask, resolve_selection
+from gym_soarm.tasks.suites import EVAL_SEED, SUITE_NAMES, distinct_tasks, resolve_selection
 
 
 def _selection(text: str) -> str:
-    if text == "all":
-        return text
-    try:
-        resolve_selection(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-    return text
+    return text if text == "all" else task_selection(text)
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -74,12 +69,10 @@ def main(argv: Sequence[str] | None = None) -> None:
         parser.error(f"--seeds must be >= 1; got {args.seeds}")
     if args.protocol is not None and args.protocol < 1:
         parser.error(f"--protocol must be >= 1; got {args.protocol}")
-    selection = ",".join(task_names() if "all" in args.task else args.task)
-    items: list[SelectedTask] = []
-    for item in resolve_selection(selection):
-        if all((item.task, item.variation) != (seen.task, seen.variation) for seen in items):
-            items.append(item)
-    for item in items:
+    if args.seeds is not None and args.protocol is not None:
+        parser.error("--seeds and --protocol choose the episodes two ways; give one of them")
+    names = [",".join(task_names()) if name == "all" else name for name in args.task]
+    for item in distinct_tasks(resolve_selection(",".join(names))):
         started = time.perf_counter()
         kwargs = {**item.variation, "control_mode": args.control_mode}
         if args.protocol is not None:

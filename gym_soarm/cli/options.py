@@ -1,11 +1,21 @@
-"""Command-line options shared by the programs that write datasets (recorder, teleop)."""
+"""Command-line options shared by gym_soarm's programs (recorder, teleop, expert)."""
 
 from __future__ import annotations
 
 import argparse
 
 from gym_soarm.control import CONTROL_MODES
+from gym_soarm.tasks.suites import resolve_selection
 from gym_soarm.units import UNITS
+
+
+def task_selection(text: str) -> str:
+    """argparse type of ``--task``: a task, a suite or a comma list of them, checked."""
+    try:
+        resolve_selection(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
 
 
 def add_dataset_action_arguments(parser: argparse.ArgumentParser) -> None:

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from gym_soarm import constants
-from gym_soarm.cli.options import add_dataset_action_arguments
+from gym_soarm.cli.options import add_dataset_action_arguments, task_selection
 from gym_soarm.data.record import (
     CAMERA_CONFIG_CHOICES,
     DEFAULT_RECORD_TASK,
@@ -22,17 +22,8 @@ from gym_soarm.data.record import (
 )
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
 from gym_soarm.tasks import task_names
-from gym_soarm.tasks.suites import SUITE_NAMES, resolve_selection
+from gym_soarm.tasks.suites import SUITE_NAMES
 from gym_soarm.validation import parse_size
-
-
-def selection(text: str) -> str:
-    """argparse type of ``--task``: a task, a suite or a comma list, checked."""
-    try:
-        resolve_selection(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-    return text
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -42,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--task",
-        type=selection,
+        type=task_selection,
         default=DEFAULT_RECORD_TASK,
         metavar="TASK",
         help=f"a task ({', '.join(task_names())}), a suite ({', '.join(SUITE_NAMES)}) or a "

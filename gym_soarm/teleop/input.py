@@ -286,11 +286,13 @@ class TeleopSpeeds:
     step_s: float = 0.02
 
     def __post_init__(self) -> None:
+        step = check_number("step_s", self.step_s, 0.0, "seconds")
+        if step <= 0.0:
+            raise ValueError(f"step_s must be above 0 seconds; got {step!r}.")
         limits = {
-            "linear_m_s": (EE_DELTA_LIMIT_M / self.step_s, "m/s"),
-            "angular_rad_s": (EE_ANGLE_DELTA_LIMIT_RAD / self.step_s, "rad/s"),
+            "linear_m_s": (EE_DELTA_LIMIT_M / step, "m/s"),
+            "angular_rad_s": (EE_ANGLE_DELTA_LIMIT_RAD / step, "rad/s"),
         }
-        check_number("step_s", self.step_s, 0.0, "seconds")
         for name, (limit, unit) in limits.items():
             value = check_number(name, getattr(self, name), 0.0, unit)
             if not 0.0 < value <= limit + 1e-9:
