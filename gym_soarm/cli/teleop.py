@@ -24,6 +24,7 @@ from gym_soarm.data.record import (
     FPS,
     dataset_features,
     default_root,
+    write_recording_settings,
 )
 from gym_soarm.render.display import window_support_problem
 from gym_soarm.tasks import get_task, task_names, task_spellings
@@ -213,6 +214,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 )
             except (ValueError, FileExistsError, ImportError) as exc:
                 parser.error(str(exc))
+            write_recording_settings(
+                root, args.units, args.wrist_roll_offset_deg, args.calibration, args.control_mode
+            )
             print(f"recording into {root}", flush=True)
         session = TeleopSession(
             env,

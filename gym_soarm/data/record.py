@@ -61,6 +61,8 @@ VARIATION_KEYWORDS: tuple[str, ...] = (
     "distractors",
 )
 VARIATION_PATH = "meta/variation.jsonl"
+SETTINGS_PATH = "meta/gym_soarm.json"
+"""What a gym_soarm recording's joint values mean: units, wrist offset, calibration, mode."""
 DEFAULT_RECORD_TASK = lift_cube.SPEC.name
 """The recorder's default task: lifting the cube, the shortest demonstration."""
 FPS = constants.RENDER_FPS
@@ -224,12 +226,30 @@ def write_variation(
     drawn: Mapping[str, Any] | None,
     task: str,
 ) -> None:
-    """Append a kept episode's drawn variation to ``meta/variation.jsonl`` (if any)."""
-    if drawn is None:
-        return
-    line = {"episode_index": episode_index, "task": task, "seed": seed, **drawn}
+    """Append a kept episode's origin to ``meta/variation.jsonl``: its index, task and reset
+    seed, and what its reset drew (``info["variation"]``) when the scene is varied."""
+    line = {"episode_index": episode_index, "task": task, "seed": seed, **(drawn or {})}
     with open(Path(root) / VARIATION_PATH, "a", encoding="utf-8") as out:
         out.write(json.dumps(line) + "\n")
+
+
+def write_recording_settings(
+    root: str | os.PathLike[str],
+    units: str,
+    wrist_roll_offset_deg: float,
+    calibration: str | os.PathLike[str] | None,
+    control_mode: str,
+) -> None:
+    """Write ``meta/gym_soarm.json``: how to read the dataset's joint values back
+    (:func:`gym_soarm.data.replay.replay` reads it)."""
+    settings = {
+        "units": units,
+        "wrist_roll_offset_deg": float(wrist_roll_offset_deg),
+        "calibration": None if calibration is None else os.path.abspath(calibration),
+        "control_mode": control_mode,
+    }
+    path = Path(root) / SETTINGS_PATH
+    path.write_text(json.dumps(settings, indent=2) + "\n", encoding="utf-8")
 
 
 def record(
@@ -296,7 +316,8 @@ def record(
         variation: keywords of ``gym.make`` that vary the scene: ``visual_randomization``,
             ``physics_randomization``, ``servo_model``, ``object_placement``,
             ``distractors``. What each kept episode's reset drew (``info["variation"]``)
-            is written to ``meta/variation.jsonl``, one line per episode.
+            is written to ``meta/variation.jsonl``, one line per kept episode (with
+            its task and reset seed, also when nothing varies).
         control_mode: the environment's control mode (one of
             :data:`gym_soarm.control.CONTROL_MODES`): what the recorded ``action`` holds.
         calibration: with LeRobot units, a real SO-101 follower's LeRobot calibration
@@ -390,6 +411,7 @@ def record(
     writer = LeRobotDatasetWriter.create(
         root, FPS, features, robot_type=robot_type, overwrite=overwrite
     )
+    write_recording_settings(root, units, wrist_roll_offset_deg, calibration, control_mode)
     attempts = successes = 0
     interrupted = False
     bar = None

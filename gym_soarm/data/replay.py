@@ -13,9 +13,10 @@ named as LeRobot's SO-101 follower names them (``shoulder_pan.pos`` ... ``grippe
 absolute joint targets, as ``lerobot-record`` and the recorder's default
 ``control_mode="joint_pos"`` write them.
 
-**Units.** ``robot_type`` ``"gym_soarm"`` means radians (the recorder's ``--units
-radians``); any other means LeRobot's units, degrees by default (``"lerobot"``, the
-follower's default since LeRobot 0.4.4). Datasets recorded in LeRobot's older -100..100
+**Units.** A gym_soarm recording says how it was written (``meta/gym_soarm.json``: units,
+wrist offset, calibration file); otherwise ``robot_type`` ``"gym_soarm"`` means radians
+and any other means LeRobot's units, degrees by default (``"lerobot"``, the follower's
+default since LeRobot 0.4.4). Arguments given to :func:`replay` win over both. Datasets recorded in LeRobot's older -100..100
 convention need ``units="lerobot_range"``; a real arm's calibration file
 (``calibration``, see :mod:`gym_soarm.calibration`) and ``wrist_roll_offset_deg`` apply
 as in ``gym.make``.
@@ -29,10 +30,12 @@ interpolated.
 **The scene.** :data:`REPLAY_TASK` by default: the arm and a target ball that collides
 with nothing, so no simulated object is in the way of a real arm's motion. A real
 gripper that closed on an object stops at the object, the simulated one closes further:
-expect the gripper's error to show the grasps. To replay a dataset recorded by
-``python -m gym_soarm.record``, give its task and seed: episode ``k`` then resets with
-``seed + k``, as the recorder's attempt ``k`` did (when every attempt was kept), and the
-objects are where they were.
+expect the gripper's error to show the grasps. A dataset recorded by
+``python -m gym_soarm.record`` lists each episode's task and reset seed
+(``meta/variation.jsonl``): each episode is replayed in its own task, reset with its own
+seed, so the objects are where they were (a scene's randomisation is not replayed).
+Giving ``task`` replays every episode in that scene, episode ``k`` reset with
+``seed + k``.
 """
 
 from __future__ import annotations
@@ -48,6 +51,7 @@ from typing import Any
 import numpy as np
 
 from gym_soarm import constants
+from gym_soarm.data.record import SETTINGS_PATH, VARIATION_PATH
 from gym_soarm.tasks import get_task
 from gym_soarm.units import FEATURE_NAMES, RADIANS, UNITS, joint_units
 from gym_soarm.validation import check_choice, check_int
@@ -95,6 +99,10 @@ class ReplayDataset:
     robot_type: str | None
     units: str
     episodes: dict[int, tuple[np.ndarray, np.ndarray]]
+    settings: Mapping[str, Any] | None = None
+    """``meta/gym_soarm.json`` of a gym_soarm recording (units, offset, calibration)."""
+    origins: Mapping[int, tuple[str, int]] | None = None
+    """Episode index -> (task, reset seed), from a gym_soarm recording."""
 
 
 def read_replay_dataset(
@@ -162,7 +170,11 @@ def read_replay_dataset(
     if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not fps > 0:
         raise _refuse(root, f"fps is {fps!r}", "info.json must give a positive frame rate.")
     robot_type = info.get("robot_type")
+    settings = _read_json(folder / SETTINGS_PATH, root)
     units = RADIANS if robot_type == "gym_soarm" else "lerobot"
+    if settings is not None:
+        units = settings.get("units", units)
+    origins = _read_origins(folder / VARIATION_PATH, root)
 
     files = sorted((folder / "data").glob("chunk-*/file-*.parquet"))
     if not files:
@@ -193,7 +205,32 @@ def read_replay_dataset(
         )
         for index in wanted
     }
-    return ReplayDataset(folder, fps, robot_type, units, chosen)
+    return ReplayDataset(folder, fps, robot_type, units, chosen, settings, origins)
+
+
+def _read_json(path: Path, root: str | os.PathLike[str]) -> dict[str, Any] | None:
+    if not path.is_file():
+        return None
+    try:
+        content = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise _refuse(root, f"{path.name} cannot be read ({exc})", "Check the file.") from exc
+    if not isinstance(content, dict):
+        raise _refuse(root, f"{path.name} is not a JSON object", "Check the file.")
+    return content
+
+
+def _read_origins(path: Path, root: str | os.PathLike[str]) -> dict[int, tuple[str, int]] | None:
+    if not path.is_file():
+        return None
+    origins: dict[int, tuple[str, int]] = {}
+    for text in path.read_text(encoding="utf-8").splitlines():
+        try:
+            line = json.loads(text)
+            origins[int(line["episode_index"])] = (str(line["task"]), int(line["seed"]))
+        except (json.JSONDecodeError, KeyError, TypeError, ValueError):
+            continue  # a line without an episode's origin (older recordings): not used
+    return origins or None
 
 
 def _figures(error: np.ndarray) -> dict[str, dict[str, float]]:
@@ -291,8 +328,8 @@ def replay(
     episodes: Sequence[int] | None = None,
     units: str | None = None,
     calibration: str | os.PathLike[str] | None = None,
-    wrist_roll_offset_deg: float = 0.0,
-    task: str = REPLAY_TASK,
+    wrist_roll_offset_deg: float | None = None,
+    task: str | None = None,
     seed: int = 0,
 ) -> ReplayReport:
     """Drive the simulation with a dataset's actions; compare with its recorded states.
@@ -301,11 +338,15 @@ def replay(
         root: a LeRobotDataset v3.0 folder (see the module docstring).
         episodes: episode indices to replay; None for all.
         units: the dataset's joint units (one of :data:`gym_soarm.units.UNITS`); None to
-            detect them from ``robot_type``.
-        calibration: the recording arm's LeRobot calibration file (LeRobot units only).
-        wrist_roll_offset_deg: the arm's wrist_roll reading when the model's is at 0 rad.
-        task: the scene to replay in (a registered task or alias).
-        seed: episode ``k`` resets the scene with ``seed + k`` (its objects' places).
+            read them from a gym_soarm recording's settings, or from ``robot_type``.
+        calibration: the recording arm's LeRobot calibration file (LeRobot units only);
+            None for the recording's own (gym_soarm recordings) or none.
+        wrist_roll_offset_deg: the arm's wrist_roll reading when the model's is at 0 rad;
+            None for the recording's own (gym_soarm recordings) or 0.
+        task: the scene of every episode (a registered task or alias); None for each
+            episode's recorded task where the dataset lists it, else :data:`REPLAY_TASK`.
+        seed: with ``task`` (or a dataset that lists no origins), episode ``k`` resets the
+            scene with ``seed + k``.
 
     Raises:
         ValueError: a bad argument or dataset (nothing is simulated then).
@@ -313,30 +354,49 @@ def replay(
     """
     import gymnasium as gym
 
-    spec = get_task(task)
+    if task is not None:
+        task = get_task(task).name
     check_choice("units", units, UNITS, none_ok=True)
     seed = check_int("seed", seed, 0)
     if episodes is not None:
         episodes = [check_int("episode", e, 0) for e in episodes]
     dataset = read_replay_dataset(root, episodes)
+    settings = dataset.settings or {}
+    from_settings = units is None and bool(settings)
     chosen_units = units or dataset.units
+    if wrist_roll_offset_deg is None:
+        wrist_roll_offset_deg = settings.get("wrist_roll_offset_deg", 0.0) if from_settings else 0.0
+    if calibration is None and from_settings:
+        calibration = settings.get("calibration")
     joint_units(chosen_units, wrist_roll_offset_deg, calibration)  # checks them all first
-    env = gym.make(
-        spec.env_id,
-        obs_type="environment_state_agent_pos",
-        units=chosen_units,
-        wrist_roll_offset_deg=wrist_roll_offset_deg,
-        calibration=calibration,
-    )
+    scenes: dict[int, tuple[str, int]] = {}
+    for index in dataset.episodes:
+        origin = (dataset.origins or {}).get(index)
+        if task is None and origin is not None:
+            scenes[index] = (get_task(origin[0]).name, origin[1])
+        else:
+            scenes[index] = (task or REPLAY_TASK, seed + index)
+    envs: dict[str, Any] = {}
     try:
-        replays = tuple(
-            _replay_episode(env.unwrapped, index, actions, states, dataset.fps, seed + index)
-            for index, (actions, states) in dataset.episodes.items()
-        )
+        replays = []
+        for index, (actions, states) in dataset.episodes.items():
+            name, episode_seed = scenes[index]
+            if name not in envs:
+                envs[name] = gym.make(
+                    get_task(name).env_id,
+                    obs_type="environment_state_agent_pos",
+                    units=chosen_units,
+                    wrist_roll_offset_deg=wrist_roll_offset_deg,
+                    calibration=calibration,
+                )
+            env = envs[name].unwrapped
+            replays.append(_replay_episode(env, index, actions, states, dataset.fps, episode_seed))
     finally:
-        env.close()
+        for env in envs.values():
+            env.close()
+    label = ",".join(dict.fromkeys(name for name, _ in scenes.values()))
     return ReplayReport(
-        str(root), chosen_units, dataset.fps, dataset.robot_type, spec.name, replays
+        str(root), chosen_units, dataset.fps, dataset.robot_type, label, tuple(replays)
     )
 
 
