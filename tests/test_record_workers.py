@@ -208,3 +208,16 @@ def test_workers_write_the_same_variation_lines(tmp_path):
     lines = (tmp_path / "w2" / "meta" / "variation.jsonl").read_text().splitlines()
     assert [json.loads(line)["seed"] for line in lines] == [9, 10]
     assert_same_dataset(tmp_path / "w1", tmp_path / "w2")
+
+
+def test_a_multi_task_recording_is_the_same_with_workers_and_ray(tmp_path):
+    """Two tasks into one dataset: one process, two workers and a local Ray cluster (started
+    once for both tasks) write the same files."""
+    args = {"task": "ReachTarget-v0,PushCube-v0", "episodes": 2, "seed": 2, **PIXELS}
+    record(tmp_path / "one", **args)
+    record(tmp_path / "two", workers=2, **args)
+    assert_same_dataset(tmp_path / "one", tmp_path / "two")
+    pytest.importorskip("ray")
+    summary = record(tmp_path / "ray", ray_address="local", workers=2, **args)
+    assert summary.tasks == ("ReachTarget-v0", "PushCube-v0") and summary.episodes == 4
+    assert_same_dataset(tmp_path / "one", tmp_path / "ray")

@@ -13,10 +13,12 @@ as with one process. Ray runs a task again when its worker dies.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import os
 import shutil
 import tempfile
 import uuid
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -93,6 +95,34 @@ def play_attempt(
     return attempt, success, files, drawn
 
 
+def _connect(ray: Any, address: str) -> bool:
+    """Connect to (or start) the Ray cluster unless connected; whether this call did."""
+    if ray.is_initialized():
+        return False
+    ray.init(
+        address=None if address == "local" else address,
+        include_dashboard=False,
+        log_to_driver=False,
+        runtime_env={"env_vars": {"PYTHONPATH": os.environ.get("PYTHONPATH", "")}}
+        if os.environ.get("PYTHONPATH")
+        else None,
+    )
+    return True
+
+
+@contextlib.contextmanager
+def ray_session(address: str) -> Iterator[None]:
+    """Stay connected to the Ray cluster at ``address`` (``"local"``: a new local one)
+    across several recordings, so a multi-task recording starts Ray once."""
+    ray = require_ray()
+    started_here = _connect(ray, address)
+    try:
+        yield
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
 def record_with_ray(
     writer: LeRobotDatasetWriter,
     plan: AttemptPlan,
@@ -122,16 +152,7 @@ def record_with_ray(
         RuntimeError: a task failed for good (its error is chained).
     """
     ray = require_ray()
-    started_here = not ray.is_initialized()
-    if started_here:
-        ray.init(
-            address=None if address == "local" else address,
-            include_dashboard=False,
-            log_to_driver=False,
-            runtime_env={"env_vars": {"PYTHONPATH": os.environ.get("PYTHONPATH", "")}}
-            if os.environ.get("PYTHONPATH")
-            else None,
-        )
+    started_here = _connect(ray, address)
     if parallel is None:
         parallel = max(1, int(ray.cluster_resources().get("CPU", 1)))
     task = ray.remote(num_cpus=1, max_retries=TASK_RETRIES)(play_attempt)

@@ -28,6 +28,7 @@ environment's control mode turns them into its action
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
@@ -300,7 +301,8 @@ def record(
         dart_noise: standard deviation (rad) of the Gaussian noise added to the executed
             action on every joint; the recorded action stays the expert's. 0 disables it.
         overwrite: replace an existing dataset in ``root``.
-        max_attempts: give up after this many attempts (default ``3 * episodes + 10``).
+        max_attempts: give up on a task after this many of its attempts (default
+            ``3 * episodes + 10``).
         progress: show a progress bar on stderr.
         workers: record the attempts in this many worker processes (each writes its
             episodes to a shard; this process merges them in attempt order). The
@@ -415,7 +417,12 @@ def record(
     attempts = successes = 0
     interrupted = False
     bar = None
+    session = contextlib.ExitStack()
     try:
+        if ray_address is not None and len(plans) > 1:  # one Ray connection for all tasks
+            from gym_soarm.data.ray_tasks import ray_session
+
+            session.enter_context(ray_session(ray_address))
         if progress:
             from tqdm import tqdm
 
@@ -436,6 +443,7 @@ def record(
     finally:
         if bar is not None:
             bar.close()
+        session.close()
         writer.finalize()
     seconds = time.perf_counter() - started
     size_bytes = sum(p.stat().st_size for p in Path(root).rglob("*") if p.is_file())
