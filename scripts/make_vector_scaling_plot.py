@@ -7,7 +7,7 @@
 Reads the ``vector_scaling`` reports of one or more benchmark JSON files and draws one
 panel per observation type: the speedup of each vector env (native threads,
 ``AsyncVectorEnv``, ``SyncVectorEnv``) over one environment against ``num_envs`` (log
-scale), with the one-env line and, for state observations, the SPEC target of 1.7.
+scale), with the one-env line and, for state observations, the target of 1.7.
 Drawn with OpenCV, so it needs nothing beyond gym_soarm's dependencies.
 """
 
@@ -23,12 +23,14 @@ from typing import Any
 import cv2
 import numpy as np
 
+from gym_soarm.tools.bench import VECTOR_SPEEDUP_TARGET
+
 OUTPUT = Path(__file__).resolve().parents[1] / "docs" / "vector_scaling.png"
 PANEL = (420, 520)  # (height, width) of one panel
 MARGIN = (50, 60, 60, 20)  # top, left, bottom, right of the plotting area
 COLOURS = {"native": (180, 100, 30), "async": (30, 130, 230), "sync": (110, 110, 110)}  # BGR
 LABELS = {"native": "native (threads)", "async": "AsyncVectorEnv", "sync": "SyncVectorEnv"}
-STATE_TARGET = 1.7
+STATE_TARGET = VECTOR_SPEEDUP_TARGET
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 INK = (40, 40, 40)
 

@@ -219,7 +219,12 @@ def test_configuration_names(name, expected):
         (["--vector-scaling", "2", "--vector-modes", "forked"], "vector modes must be among"),
         (["--vector-scaling", "two"], "--vector-scaling must be comma-separated integers"),
         (["--recording", "2", "--image-size", "47x64"], "image size must be even"),
-        (["--recording", "2", "--recording-episodes", "0"], "recording workers must be >= 0"),
+        (
+            ["--recording", "2", "--recording-episodes", "0"],
+            "recording episodes must be at least 1",
+        ),
+        (["--vector-scaling", "2", "--vector-obs", "front"], "vector obs must be 'state' or a"),
+        (["--recording", "2", "--recording-cameras", "top"], "recording cameras must be 'none'"),
     ],
 )
 def test_bad_options_are_refused_before_measuring(argv, fragment, capsys, tmp_path):

@@ -32,7 +32,7 @@ rebuild the meshes and compile) is measured once per visual variant.
 (:mod:`gym_soarm.tools.bench_vector`): aggregate steps/s of the native threaded vector env,
 ``AsyncVectorEnv`` and ``SyncVectorEnv`` at each ``num_envs``, and the speedup of each over
 one environment measured in the same rounds; state observations, and the camera configs
-of ``--vector-obs`` at ``--image-size``. Its SPEC section 16 target (the native env's best
+of ``--vector-obs`` at ``--image-size``. Its target (the native env's best
 speedup with state observations at least 1.7) joins the checked targets.
 
 ``--recording N`` adds recording throughput (:mod:`gym_soarm.tools.bench_record`):
@@ -83,7 +83,7 @@ SLICES_PER_REPEAT = 4  # each repeat alternates this many slices of env and ceil
 STATE_RESETS = 50
 PIXEL_RESETS = 5
 
-# SPEC section 9 floors: (what is compared, configuration, bound, "min" or "max").
+# The performance floors: (what is compared, configuration, bound, "min" or "max").
 TARGETS: tuple[tuple[str, str, float, str], ...] = (
     ("steps_per_s", "state", 4000.0, "min"),
     ("steps_per_s", "front_only_640x480", 20.0, "min"),
@@ -93,7 +93,7 @@ TARGETS: tuple[tuple[str, str, float, str], ...] = (
     ("make_s", "state", 1.0, "max"),
 )
 RATIO_TARGET = 0.8  # every pixel configuration against its raw-renderer ceiling
-VECTOR_SPEEDUP_TARGET = 1.7  # SPEC section 16: native vector env over one env, state
+VECTOR_SPEEDUP_TARGET = 1.7  # the native vector env over one env, state observations
 DEFAULT_IMAGE_SIZE = (96, 128)  # (height, width) of --vector-obs and --recording-cameras
 
 _CONFIG_PATTERN = re.compile(r"^(front_only|front_wrist|all)_(\d+)x(\d+)(?:_(fast|high))?$")
@@ -744,7 +744,7 @@ def _cpu_name() -> str:
 
 
 def check_targets(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """SPEC section 9 floors, each with the measured value and whether it is met."""
+    """The performance floors, each with the measured value and whether it is met."""
     by_name = {r["name"]: r for r in results if "error" not in r}
     checks = []
     for field, name, bound, kind in TARGETS:
@@ -765,7 +765,7 @@ def check_targets(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def check_scaling_target(scaling: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """SPEC section 16: the native vector env's best speedup over one env, state obs."""
+    """The scaling target: the native vector env's best speedup over one env, state obs."""
     checks = []
     for report in scaling:
         rows = [r for r in report.get("rows", []) if r["mode"] == "native" and r["num_envs"] > 1]
@@ -898,11 +898,26 @@ def run(
         raise ValueError("vector obs must name 'state' or a camera config")
     if min(image_size) < 2 or any(v % 2 for v in image_size):
         raise ValueError(f"image size must be even and positive; got {image_size!r}")
-    if recording < 0 or recording_episodes < 1:
-        raise ValueError(
-            f"recording workers must be >= 0 and episodes >= 1; got {recording!r}, "
-            f"{recording_episodes!r}"
-        )
+    if recording < 0:
+        raise ValueError(f"recording workers must be >= 0 (0: no recording); got {recording!r}")
+    if recording_episodes < 1:
+        raise ValueError(f"recording episodes must be at least 1; got {recording_episodes!r}")
+    from gym_soarm import constants
+    from gym_soarm.validation import resolve_camera_config
+
+    for name, values, extra in (
+        ("vector obs", vector_obs, "state"),
+        ("recording cameras", recording_cameras, "none"),
+    ):
+        for value in values:  # checked now, not in a worker after other sections ran
+            if value != extra:
+                try:
+                    resolve_camera_config(value)
+                except ValueError:
+                    raise ValueError(
+                        f"{name} must be {extra!r} or a camera config "
+                        f"({', '.join(constants.CAMERA_CONFIGS)}); got {value!r}"
+                    ) from None
     if not (math.isfinite(seconds) and seconds > 0):
         raise ValueError(f"seconds must be a positive number; got {seconds!r}")
     if repeats < 1:

@@ -32,6 +32,7 @@ import gymnasium as gym
 import numpy as np
 
 import gym_soarm  # noqa: F401  (registers the environments)
+from gym_soarm.tools.bench import _spread
 
 DEFAULT_ENV_ID = "gym_soarm/LiftCube-v0"
 VECTOR_MODES: tuple[str, ...] = ("native", "async", "sync")
@@ -106,15 +107,6 @@ def vector_rate(envs: gym.vector.VectorEnv, actions: np.ndarray, seconds: float)
         if time.perf_counter() >= deadline:
             break
     return batches * envs.num_envs / (time.perf_counter() - started)
-
-
-def _spread(values: Sequence[float]) -> dict[str, Any]:
-    return {
-        "median": statistics.median(values),
-        "min": min(values),
-        "max": max(values),
-        "repeats": list(values),
-    }
 
 
 def measure(
