@@ -6,14 +6,14 @@
 # resets with seed 1000 + k, lerobot-eval's default --seed), and append one JSON line of
 # figures to $OUT/results.jsonl. Run it in the Python 3.12 environment that has LeRobot:
 #
-#     pip install "lerobot[dataset,training]==0.6.1" -e ".[lerobot]"
+#     pip install "lerobot[dataset,training]==0.6.1" -e ".[lerobot]" -e plugins/lerobot_env_soarm
 #     bash scripts/baselines.sh            # TASKS, EPISODES, STEPS, EVAL_EPISODES, OUT
 #
 # Every command below is the exact one behind the README's baseline table.
 set -euo pipefail
 TASKS="${TASKS:-ReachTarget-v0 LiftCube-v0 PickAndPlaceCube-v0 PushCube-v0}"
 EPISODES="${EPISODES:-50}"
-STEPS="${STEPS:-2000}"
+STEPS="${STEPS:-1000}"
 EVAL_EPISODES="${EVAL_EPISODES:-50}"
 OUT="${OUT:-outputs/baselines}"
 export HF_HUB_OFFLINE=1 WANDB_MODE=disabled
