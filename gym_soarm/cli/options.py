@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from gym_soarm import constants
 from gym_soarm.control import CONTROL_MODES
 from gym_soarm.tasks.suites import resolve_selection
 from gym_soarm.units import UNITS
@@ -47,3 +48,11 @@ def add_dataset_action_arguments(parser: argparse.ArgumentParser) -> None:
         "(joint_delta), the jaws' pose in the robot's base frame (ee_pose) or its changes "
         "(ee_delta) (default joint_pos)",
     )
+
+
+def camera_config_argument(text: str) -> str | list[str]:
+    """``--camera-config`` as the recorder takes it: a config name (``front_wrist``,
+    ``none`` ...) as is, camera names (``front_camera,wrist_camera``) as a list."""
+    if "," in text or text in constants.CAMERA_NAMES:
+        return [name.strip() for name in text.split(",") if name.strip()]
+    return text

@@ -11,8 +11,11 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from gym_soarm import constants
-from gym_soarm.cli.options import add_dataset_action_arguments, task_selection
+from gym_soarm.cli.options import (
+    add_dataset_action_arguments,
+    camera_config_argument,
+    task_selection,
+)
 from gym_soarm.data.record import (
     CAMERA_CONFIG_CHOICES,
     DEFAULT_RECORD_TASK,
@@ -116,9 +119,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the process exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    camera_config: str | list[str] = args.camera_config
-    if "," in camera_config or camera_config in constants.CAMERA_NAMES:
-        camera_config = [c.strip() for c in camera_config.split(",") if c.strip()]
+    camera_config = camera_config_argument(args.camera_config)
     root = Path(args.root) if args.root else default_root(args.repo_id)
     try:
         size = parse_size(args.size)

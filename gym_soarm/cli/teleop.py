@@ -15,7 +15,10 @@ from pathlib import Path
 import gymnasium as gym
 
 from gym_soarm import constants
-from gym_soarm.cli.options import add_dataset_action_arguments
+from gym_soarm.cli.options import (
+    add_dataset_action_arguments,
+    camera_config_argument,
+)
 from gym_soarm.data import LeRobotDatasetWriter
 from gym_soarm.data.record import (
     CAMERA_CONFIG_CHOICES,
@@ -142,9 +145,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the process exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    camera_config: str | list[str] = args.camera_config
-    if "," in camera_config or camera_config in constants.CAMERA_NAMES:
-        camera_config = [c.strip() for c in camera_config.split(",") if c.strip()]
+    camera_config = camera_config_argument(args.camera_config)
     state_only = camera_config == CAMERA_CONFIG_NONE
     recording = args.root is not None or args.repo_id is not None
     repo_id = args.repo_id or DEFAULT_REPO_ID
