@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from xwindows import (
     WAIT_S,
+    EventProgram,
     click,
     close_window,
     find_windows,
@@ -48,20 +49,14 @@ def _load_script():
 slider = _load_script()
 
 
-class SliderProcess:
+class SliderProcess(EventProgram):
     """The script running in its own process, its windows and its event lines."""
 
+    name = "the script"
+
     def __init__(self, tmp_path: Path, *extra: str) -> None:
-        self.stdout_path = tmp_path / "stdout.txt"
-        self.stderr_path = tmp_path / "stderr.txt"
         size = ["--height", str(HEIGHT), "--width", str(WIDTH)]
-        with open(self.stdout_path, "w") as out, open(self.stderr_path, "w") as err:
-            self.process = subprocess.Popen(
-                [sys.executable, "-u", str(SCRIPT), *size, *extra],
-                stdout=out,
-                stderr=err,
-                stdin=subprocess.DEVNULL,
-            )
+        self.start([sys.executable, "-u", str(SCRIPT), *size, *extra], tmp_path)
         self.control = self._wait_for_window(slider.CONTROL_WINDOW)
         self.camera = self._wait_for_window(slider.CAMERA_WINDOW)
         # Windows appear before their content; wait for the final layout.
@@ -73,37 +68,12 @@ class SliderProcess:
             "the windows to take their final size",
         )
 
-    def _check_running(self, waiting_for: str) -> None:
-        if self.process.poll() is not None:
-            pytest.fail(
-                f"the script exited with {self.process.returncode} while waiting for "
-                f"{waiting_for}: {self.stderr_path.read_text()[-2000:]}"
-            )
-
     def _wait_for_window(self, name: str) -> int:
         def mapped() -> int | None:
-            self._check_running(f"window {name!r}")
+            self.check_running(f"window {name!r}")
             return next((w for w in find_windows(name) if window_size(w) is not None), None)
 
         return int(wait_for(mapped, f"a window titled {name!r}"))
-
-    def lines(self, event: str) -> list[str]:
-        text = self.stdout_path.read_text()
-        return [line for line in text.splitlines() if line.split(" ", 1)[0] == event]
-
-    def wait_for_event(self, event: str, count: int) -> str:
-        """The ``count``-th line of ``event`` (1-based), once the script printed it."""
-
-        def printed() -> str | None:
-            exited = self.process.poll() is not None
-            found = self.lines(event)  # read after poll(): an exited script has flushed
-            if len(found) >= count:
-                return found[count - 1]
-            if exited:
-                self._check_running(f"event {event!r} #{count}")
-            return None
-
-        return str(wait_for(printed, f"event {event!r} #{count}"))
 
     def trackbar_center_y(self, row: int) -> int:
         # Qt lays the panel image out on top and the seven trackbar rows below it.

@@ -19,7 +19,15 @@ import numpy as np
 import pytest
 from dataset_files import read_dataset
 from mp4 import read_video
-from xwindows import WAIT_S, close_window, press, require_window_tools, wait_for, wait_for_window
+from xwindows import (
+    WAIT_S,
+    EventProgram,
+    close_window,
+    press,
+    require_window_tools,
+    wait_for,
+    wait_for_window,
+)
 
 from gym_soarm.cli.teleop import main
 from gym_soarm.teleop import (
@@ -47,52 +55,24 @@ def jaw(line: str) -> np.ndarray:
     return np.array([float(v) for v in match.groups()])
 
 
-class TeleopProcess:
+class TeleopProcess(EventProgram):
     """The teleop running in its own process, its window and its event lines."""
 
+    name = "teleop"
+
     def __init__(self, tmp_path: Path, *args: str, env: dict[str, str] | None = None) -> None:
-        self.stdout_path = tmp_path / "stdout.txt"
-        self.stderr_path = tmp_path / "stderr.txt"
         size = ["--size", f"{HEIGHT}x{WIDTH}"]
-        with open(self.stdout_path, "w") as out, open(self.stderr_path, "w") as err:
-            self.process = subprocess.Popen(
-                [sys.executable, "-u", "-m", "gym_soarm.teleop", *size, *args],
-                stdout=out,
-                stderr=err,
-                stdin=subprocess.DEVNULL,
-                env=env,
-            )
+        command = [sys.executable, "-u", "-m", "gym_soarm.teleop", *size, *args]
+        self.start(command, tmp_path, env)
         self.window = self._wait_for_window()
 
     def _wait_for_window(self) -> int:
         def running_then_window() -> bool:
-            if self.process.poll() is not None:
-                pytest.fail(f"teleop exited early: {self.stderr_path.read_text()[-2000:]}")
+            self.check_running("the first reset")
             return bool(self.lines("reset"))
 
         wait_for(running_then_window, "the first reset")
         return wait_for_window(WINDOW_TITLE)
-
-    def lines(self, event: str) -> list[str]:
-        text = self.stdout_path.read_text()
-        return [line for line in text.splitlines() if line.split(" ", 1)[0] == event]
-
-    def wait_for_event(self, event: str, count: int) -> str:
-        """The ``count``-th line of ``event`` (1-based), once the program printed it."""
-
-        def printed() -> str | None:
-            exited = self.process.poll() is not None
-            found = self.lines(event)  # read after poll(): an exited process has flushed
-            if len(found) >= count:
-                return found[count - 1]
-            if exited:
-                pytest.fail(
-                    f"teleop exited with {self.process.returncode} before event {event!r} "
-                    f"#{count}: {self.stderr_path.read_text()[-2000:]}"
-                )
-            return None
-
-        return str(wait_for(printed, f"event {event!r} #{count}"))
 
     def keys(self, *keys: str, gap_s: float = KEY_GAP_S) -> None:
         for key in keys:

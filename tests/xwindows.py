@@ -15,6 +15,7 @@ import shutil
 import subprocess
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -282,3 +283,49 @@ def close_window(window: int) -> None:
         event.client.data[1] = 0  # CurrentTime
         lib.XSendEvent(display, window, False, _NO_EVENT_MASK, ctypes.byref(event))
         lib.XFlush(display)
+
+
+class EventProgram:
+    """A window program run in its own process that prints one line per event.
+
+    Subclasses start ``self.process`` with stdout and stderr going to ``self.stdout_path``
+    and ``self.stderr_path``; ``name`` names the program in failure messages.
+    """
+
+    name = "the program"
+    process: subprocess.Popen
+    stdout_path: Path
+    stderr_path: Path
+
+    def start(self, command: list[str], tmp_path: Path, env: dict[str, str] | None = None) -> None:
+        self.stdout_path = tmp_path / "stdout.txt"
+        self.stderr_path = tmp_path / "stderr.txt"
+        with open(self.stdout_path, "w") as out, open(self.stderr_path, "w") as err:
+            self.process = subprocess.Popen(
+                command, stdout=out, stderr=err, stdin=subprocess.DEVNULL, env=env
+            )
+
+    def check_running(self, waiting_for: str) -> None:
+        if self.process.poll() is not None:
+            pytest.fail(
+                f"{self.name} exited with {self.process.returncode} while waiting for "
+                f"{waiting_for}: {self.stderr_path.read_text()[-2000:]}"
+            )
+
+    def lines(self, event: str) -> list[str]:
+        text = self.stdout_path.read_text()
+        return [line for line in text.splitlines() if line.split(" ", 1)[0] == event]
+
+    def wait_for_event(self, event: str, count: int) -> str:
+        """The ``count``-th line of ``event`` (1-based), once the program printed it."""
+
+        def printed() -> str | None:
+            exited = self.process.poll() is not None
+            found = self.lines(event)  # read after poll(): an exited program has flushed
+            if len(found) >= count:
+                return found[count - 1]
+            if exited:
+                self.check_running(f"event {event!r} #{count}")
+            return None
+
+        return str(wait_for(printed, f"event {event!r} #{count}"))
