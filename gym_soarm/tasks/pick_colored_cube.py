@@ -128,6 +128,23 @@ def instruction_for(colour: str) -> str:
     return f"Pick up the {colour} cube."
 
 
+def set_cubes_down(
+    physics: SoArmPhysics,
+    rng: np.random.Generator,
+    cubes: Sequence[SceneObject],
+    positions: Sequence[tuple[float, float]],
+) -> None:
+    """Rest each cube on the table at its (x, y), turned by a yaw drawn from
+    :data:`YAW_RANGE_DEG` (one draw per cube, in order)."""
+    for cube, (x, y) in zip(cubes, positions, strict=True):
+        yaw = float(rng.uniform(*YAW_RANGE_DEG))
+        physics.set_object_pose(
+            cube.name,
+            np.array([x, y, constants.TABLE_TOP_Z_M + CUBE_HALF_M]),
+            placement.yaw_quaternion(yaw),
+        )
+
+
 class PickColoredCubeTask(Task):
     """Pick up the cube of the episode's colour, leaving the other two on the table."""
 
@@ -168,13 +185,7 @@ class PickColoredCubeTask(Task):
         physics.reset_to_home()
         radii = [cube.footprint_radius_m for cube in CUBES]
         positions = draw_beside_arm(rng, radii)
-        for cube, (x, y) in zip(CUBES, positions, strict=True):
-            yaw = float(rng.uniform(*YAW_RANGE_DEG))
-            physics.set_object_pose(
-                cube.name,
-                np.array([x, y, constants.TABLE_TOP_Z_M + CUBE_HALF_M]),
-                placement.yaw_quaternion(yaw),
-            )
+        set_cubes_down(physics, rng, CUBES, positions)
 
     def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
         parts: list[np.ndarray] = []

@@ -41,7 +41,6 @@ import numpy as np
 from gym_soarm import constants
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
-from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
     PLACE_CARRY_CREDIT,
     PLACE_MARGIN_M,
@@ -56,7 +55,7 @@ from gym_soarm.tasks.base import (
     tolerance,
 )
 from gym_soarm.tasks.cube import CUBE_HALF_M
-from gym_soarm.tasks.pick_colored_cube import draw_beside_arm
+from gym_soarm.tasks.pick_colored_cube import draw_beside_arm, set_cubes_down
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase, PlaceExpert
 
 COLOURS: tuple[str, ...] = ("red", "green", "blue")
@@ -104,7 +103,6 @@ START_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.12, 0.12)
 """Where the cubes' centres start: ((x_min, x_max), (y_min, y_max)), between the pads and
 beside the arm's home pose (:func:`~gym_soarm.tasks.pick_colored_cube.draw_beside_arm`)."""
 CUBE_GAP_M = 0.02
-YAW_RANGE_DEG: tuple[float, float] = (0.0, 90.0)
 
 REACH_HEADROOM_M = 0.10
 """Height above a cube within which ``reach`` ignores the jaws' height."""
@@ -162,13 +160,7 @@ class SortCubesTask(Task):
         positions = draw_beside_arm(
             rng, radii, START_REGION_M, keep_clear=keep_clear, gap_m=CUBE_GAP_M
         )
-        for cube, (x, y) in zip(CUBES, positions, strict=True):
-            yaw = float(rng.uniform(*YAW_RANGE_DEG))
-            physics.set_object_pose(
-                cube.name,
-                np.array([x, y, constants.TABLE_TOP_Z_M + CUBE_HALF_M]),
-                placement.yaw_quaternion(yaw),
-            )
+        set_cubes_down(physics, rng, CUBES, positions)
 
     def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
         parts: list[np.ndarray] = []
