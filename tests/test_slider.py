@@ -17,7 +17,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from xwindows import (
-    WAIT_S,
     EventProgram,
     click,
     close_window,
@@ -86,18 +85,6 @@ class SliderProcess(EventProgram):
         """Middle-click a trackbar at ``fraction`` of the window width."""
         width, _ = window_size(self.control)
         click(self.control, round(width * fraction), self.trackbar_center_y(row), MIDDLE_BUTTON)
-
-    def wait_for_exit(self) -> int:
-        try:
-            return self.process.wait(timeout=WAIT_S)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            pytest.fail("the script did not exit")
-
-    def stop(self) -> None:
-        if self.process.poll() is None:
-            self.process.kill()
-            self.process.wait()
 
 
 def parse(line: str) -> tuple[np.ndarray, np.ndarray | None]:

@@ -20,7 +20,6 @@ import pytest
 from dataset_files import read_dataset
 from mp4 import read_video
 from xwindows import (
-    WAIT_S,
     EventProgram,
     close_window,
     press,
@@ -78,18 +77,6 @@ class TeleopProcess(EventProgram):
         for key in keys:
             press(self.window, key)
             time.sleep(gap_s)
-
-    def wait_for_exit(self) -> int:
-        try:
-            return self.process.wait(timeout=WAIT_S)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            pytest.fail("teleop did not exit")
-
-    def stop(self) -> None:
-        if self.process.poll() is None:
-            self.process.kill()
-            self.process.wait()
 
 
 @pytest.fixture

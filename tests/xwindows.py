@@ -329,3 +329,15 @@ class EventProgram:
             return None
 
         return str(wait_for(printed, f"event {event!r} #{count}"))
+
+    def wait_for_exit(self) -> int:
+        try:
+            return self.process.wait(timeout=WAIT_S)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            pytest.fail(f"{self.name} did not exit")
+
+    def stop(self) -> None:
+        if self.process.poll() is None:
+            self.process.kill()
+            self.process.wait()
