@@ -27,6 +27,7 @@ from gym_soarm.data.record import (
     FPS,
     dataset_features,
     default_root,
+    robot_type_for,
     write_recording_settings,
 )
 from gym_soarm.render.display import window_support_problem
@@ -208,7 +209,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if recording:
             state_names = env.unwrapped.state_names if state_only else None
             features = dataset_features(cameras, height, width, state_names, args.control_mode)
-            robot_type = "gym_soarm" if args.units == "radians" else "so101_follower"
+            robot_type = robot_type_for(args.units)
             try:
                 writer = LeRobotDatasetWriter.create(
                     root, FPS, features, robot_type=robot_type, overwrite=args.overwrite

@@ -69,6 +69,11 @@ DEFAULT_RECORD_TASK = lift_cube.SPEC.name
 FPS = constants.RENDER_FPS
 
 
+def robot_type_for(units: str) -> str:
+    """The dataset's ``robot_type``: the real follower's in LeRobot's units, else gym_soarm."""
+    return "gym_soarm" if units == "radians" else "so101_follower"
+
+
 def default_root(repo_id: str) -> Path:
     """Where LeRobot looks for ``repo_id`` when no root is given (``$HF_LEROBOT_HOME/<repo_id>``)."""
     home = os.environ.get("HF_LEROBOT_HOME")
@@ -383,7 +388,7 @@ def record(
     started = time.perf_counter()
     # Every task's environment is built (and checked) before anything is written.
     plans: list[AttemptPlan] = []
-    robot_type = "gym_soarm" if units == "radians" else "so101_follower"
+    robot_type = robot_type_for(units)
     names = (
         shared_state_names(tuple(selected), variation.get("object_placement"))
         if state_only

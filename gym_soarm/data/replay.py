@@ -51,12 +51,12 @@ from typing import Any
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.data.record import SETTINGS_PATH, VARIATION_PATH
-from gym_soarm.tasks import get_task
+from gym_soarm.data.record import SETTINGS_PATH, VARIATION_PATH, robot_type_for
+from gym_soarm.tasks import get_task, reach_target
 from gym_soarm.units import FEATURE_NAMES, RADIANS, UNITS, joint_units
 from gym_soarm.validation import check_choice, check_int
 
-REPLAY_TASK = "ReachTarget-v0"
+REPLAY_TASK = reach_target.SPEC.name
 """The default scene: the arm and a target ball that collides with nothing."""
 SIM_FPS = constants.RENDER_FPS
 """The simulation's step rate (Hz)."""
@@ -171,7 +171,7 @@ def read_replay_dataset(
         raise _refuse(root, f"fps is {fps!r}", "info.json must give a positive frame rate.")
     robot_type = info.get("robot_type")
     settings = _read_json(folder / SETTINGS_PATH, root)
-    units = RADIANS if robot_type == "gym_soarm" else "lerobot"
+    units = RADIANS if robot_type == robot_type_for(RADIANS) else "lerobot"
     if settings is not None:
         units = settings.get("units", units)
     origins = _read_origins(folder / VARIATION_PATH, root)
