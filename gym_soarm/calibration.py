@@ -84,15 +84,18 @@ from pathlib import Path
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.units import (
+from gym_soarm.unit_maps import (
     LEROBOT,
     LEROBOT_RANGE,
     RADIANS,
     SERVO_RANGE_HIGH_RAD,
     SERVO_RANGE_LOW_RAD,
     UNITS,
+    WRIST_ROLL,
+    WRIST_ROLL_MIDDLE_RAD,
     JointUnits,
     check_wrist_roll_offset,
+    wrap_rad,
 )
 from gym_soarm.validation import ArgumentTypeError
 
@@ -105,7 +108,6 @@ HOMING_TICKS = 2047
 TICKS_PER_RAD = TICKS_PER_TURN / (2 * math.pi)
 
 _GRIPPER = constants.JOINT_NAMES.index(constants.GRIPPER_JOINT_NAME)
-_WRIST_ROLL = constants.JOINT_NAMES.index("wrist_roll")
 
 HOMING_POSE_RAD: tuple[float, ...] = tuple(
     (SERVO_RANGE_LOW_RAD[i] + SERVO_RANGE_HIGH_RAD[i]) / 2 if i == _GRIPPER else 0.0
@@ -116,13 +118,6 @@ the body joints' zero (the middle of their travel) and the middle of the gripper
 
 FIELDS: tuple[str, ...] = ("id", "drive_mode", "homing_offset", "range_min", "range_max")
 """The integer fields of each motor's entry in a LeRobot calibration file."""
-
-_WRIST_ROLL_MIDDLE_RAD = (SERVO_RANGE_LOW_RAD[_WRIST_ROLL] + SERVO_RANGE_HIGH_RAD[_WRIST_ROLL]) / 2
-
-
-def _wrap(angle_rad: np.ndarray) -> np.ndarray:
-    """Angles wrapped into [-pi, pi)."""
-    return (angle_rad + math.pi) % (2 * math.pi) - math.pi
 
 
 @dataclass(frozen=True)
@@ -288,7 +283,7 @@ class CalibratedUnits(JointUnits):
         """Joint angles (rad, last axis the six joints) as servo ticks (float, unrounded)."""
         relative = np.asarray(radians, dtype=np.float64) - self.homing_rad
         if self.wrist_roll_offset_rad:
-            relative[..., _WRIST_ROLL] = _wrap(relative[..., _WRIST_ROLL])
+            relative[..., WRIST_ROLL] = wrap_rad(relative[..., WRIST_ROLL])
         return HOMING_TICKS + self.ticks_sign * relative * TICKS_PER_RAD
 
     def ticks_to_radians(self, ticks: np.ndarray | Sequence[float]) -> np.ndarray:
@@ -297,9 +292,9 @@ class CalibratedUnits(JointUnits):
         radians = self.homing_rad + self.ticks_sign * relative
         if self.wrist_roll_offset_rad:
             # Of the angles equal modulo a turn, the one nearest the middle of the range.
-            roll = radians[..., _WRIST_ROLL]
-            radians[..., _WRIST_ROLL] = _WRIST_ROLL_MIDDLE_RAD + _wrap(
-                roll - _WRIST_ROLL_MIDDLE_RAD
+            roll = radians[..., WRIST_ROLL]
+            radians[..., WRIST_ROLL] = WRIST_ROLL_MIDDLE_RAD + wrap_rad(
+                roll - WRIST_ROLL_MIDDLE_RAD
             )
         return radians
 
@@ -347,9 +342,9 @@ class CalibratedUnits(JointUnits):
         low = np.asarray(low_rad, dtype=np.float64) - self.homing_rad
         high = np.asarray(high_rad, dtype=np.float64) - self.homing_rad
         if self.wrist_roll_offset_rad and not (
-            -math.pi <= low[_WRIST_ROLL] and high[_WRIST_ROLL] <= math.pi
+            -math.pi <= low[WRIST_ROLL] and high[WRIST_ROLL] <= math.pi
         ):
-            low[_WRIST_ROLL], high[_WRIST_ROLL] = -math.pi, math.pi
+            low[WRIST_ROLL], high[WRIST_ROLL] = -math.pi, math.pi
         first = self.normalize(HOMING_TICKS + self.ticks_sign * low * TICKS_PER_RAD)
         second = self.normalize(HOMING_TICKS + self.ticks_sign * high * TICKS_PER_RAD)
         return np.minimum(first, second), np.maximum(first, second)
@@ -392,7 +387,7 @@ def calibrated_units(
     n = len(motors)
     homing = np.array(HOMING_POSE_RAD)
     offset_rad = math.radians(offset_deg)
-    homing[_WRIST_ROLL] -= offset_rad
+    homing[WRIST_ROLL] -= offset_rad
     drive = np.array([m.drive_mode == 1 for m in motors])
     sign = np.where(drive, -1.0, 1.0)
     low = np.array([float(m.range_min) for m in motors])
