@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from conftest import colour_counts
 
+from gym_soarm.cli import bench as bench_cli
 from gym_soarm.render.camera import CameraRenderer
 from gym_soarm.sim import scene as model
 from gym_soarm.tools import bench
@@ -229,7 +230,7 @@ def test_configuration_names(name, expected):
 )
 def test_bad_options_are_refused_before_measuring(argv, fragment, capsys, tmp_path):
     with pytest.raises(SystemExit) as exit_info:
-        bench.main([*argv, "--json", str(tmp_path / "never.json")])
+        bench_cli.main([*argv, "--json", str(tmp_path / "never.json")])
     assert exit_info.value.code == 2
     assert fragment in capsys.readouterr().err
     assert not (tmp_path / "never.json").exists()

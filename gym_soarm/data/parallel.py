@@ -25,8 +25,8 @@ from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any
 
+from gym_soarm.data.attempt import FPS, AttemptPlan, record_attempt, write_variation
 from gym_soarm.data.format import SCRATCH_DIR
-from gym_soarm.data.record import FPS, AttemptPlan, record_attempt, write_variation
 from gym_soarm.data.writer import LeRobotDatasetWriter
 
 # How many times one attempt may take its worker down before the recording gives up.

@@ -22,9 +22,9 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from gym_soarm.data.attempt import FPS, AttemptPlan, record_attempt
 from gym_soarm.data.format import SCRATCH_DIR
 from gym_soarm.data.parallel import OrderedMerger
-from gym_soarm.data.record import FPS, AttemptPlan, record_attempt
 from gym_soarm.data.writer import LeRobotDatasetWriter
 
 # Times Ray runs a task again when its worker process dies.

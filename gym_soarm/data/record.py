@@ -44,8 +44,8 @@ import numpy as np
 from gym_soarm import constants
 from gym_soarm.control import CONTROL_MODES, action_names
 from gym_soarm.data import LeRobotDatasetWriter
+from gym_soarm.data.attempt import FPS, AttemptPlan, record_attempt, write_variation
 from gym_soarm.tasks import get_task, lift_cube
-from gym_soarm.tasks.base import TaskSpec
 from gym_soarm.tasks.suites import distinct_tasks, resolve_selection, shared_state_names
 from gym_soarm.units import FEATURE_NAMES, joint_units
 from gym_soarm.validation import check_choice, check_int, parse_size, resolve_camera_config
@@ -61,12 +61,10 @@ VARIATION_KEYWORDS: tuple[str, ...] = (
     "object_placement",
     "distractors",
 )
-VARIATION_PATH = "meta/variation.jsonl"
 SETTINGS_PATH = "meta/gym_soarm.json"
 """What a gym_soarm recording's joint values mean: units, wrist offset, calibration, mode."""
 DEFAULT_RECORD_TASK = lift_cube.SPEC.name
 """The recorder's default task: lifting the cube, the shortest demonstration."""
-FPS = constants.RENDER_FPS
 
 
 def robot_type_for(units: str) -> str:
@@ -163,80 +161,6 @@ def dataset_features(
     features["next.success"] = {"dtype": "bool", "shape": (1,), "names": None}
     features["next.done"] = {"dtype": "bool", "shape": (1,), "names": None}
     return features
-
-
-@dataclasses.dataclass(frozen=True)
-class AttemptPlan:
-    """Everything an attempt needs besides its index (picklable, for worker processes)."""
-
-    spec: TaskSpec
-    env_kwargs: dict[str, Any]
-    features: dict[str, dict[str, Any]]
-    robot_type: str
-    seed: int
-    dart_noise: float
-    keep: str
-    units: str
-    wrist_roll_offset_deg: float
-    cameras: tuple[str, ...]
-    state_only: bool
-
-
-def record_attempt(
-    env: gym.Env, expert: Any, writer: LeRobotDatasetWriter, plan: AttemptPlan, attempt: int
-) -> tuple[bool, dict[str, Any] | None]:
-    """Play attempt ``attempt`` (reset with ``plan.seed + attempt``) into ``writer``'s buffer.
-
-    Returns:
-        Whether the expert succeeded, and what the reset drew (``info["variation"]``, or
-        None). The frames stay in the writer's episode buffer: the caller saves, exports
-        or clears them.
-    """
-    base = env.unwrapped
-    noise = np.random.default_rng([plan.seed, attempt])
-    obs, info = env.reset(seed=plan.seed + attempt)
-    drawn = info.get("variation")
-    expert.reset()
-    done = False
-    while not done:
-        action_rad = expert.next_targets_radians()  # radians, whatever the units
-        current_rad = base.commanded_targets
-        action = base.control.action_for_targets(action_rad, current_rad)
-        executed = action
-        if plan.dart_noise > 0:
-            noisy_rad = action_rad + noise.normal(0.0, plan.dart_noise, action_rad.shape)
-            executed = base.control.action_for_targets(noisy_rad, current_rad)
-        frame: dict[str, Any] = {
-            "observation.state": obs["agent_pos"].astype(np.float32),
-            "action": action,
-            "task": env.unwrapped.task_description,
-        }
-        if plan.state_only:
-            frame["observation.environment_state"] = obs["environment_state"].astype(np.float32)
-        else:
-            for camera in plan.cameras:
-                frame[f"observation.images.{camera}"] = obs["pixels"][camera]
-        obs, reward, terminated, truncated, info = env.step(executed)
-        done = terminated or truncated
-        frame["next.reward"] = np.array([reward], np.float32)
-        frame["next.success"] = np.array([info["is_success"]])
-        frame["next.done"] = np.array([done])
-        writer.add_frame(frame)
-    return bool(info["is_success"]), drawn
-
-
-def write_variation(
-    root: str | os.PathLike[str],
-    episode_index: int,
-    seed: int,
-    drawn: Mapping[str, Any] | None,
-    task: str,
-) -> None:
-    """Append a kept episode's origin to ``meta/variation.jsonl``: its index, task and reset
-    seed, and what its reset drew (``info["variation"]``) when the scene is varied."""
-    line = {"episode_index": episode_index, "task": task, "seed": seed, **(drawn or {})}
-    with open(Path(root) / VARIATION_PATH, "a", encoding="utf-8") as out:
-        out.write(json.dumps(line) + "\n")
 
 
 def write_recording_settings(
@@ -519,9 +443,3 @@ def _record_task(
     finally:
         env.close()
     return attempts, successes, False
-
-
-if __name__ == "__main__":
-    from gym_soarm.cli.record import main
-
-    sys.exit(main())

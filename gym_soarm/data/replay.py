@@ -51,7 +51,8 @@ from typing import Any
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.data.record import SETTINGS_PATH, VARIATION_PATH, robot_type_for
+from gym_soarm.data.attempt import VARIATION_PATH
+from gym_soarm.data.record import SETTINGS_PATH, robot_type_for
 from gym_soarm.tasks import get_task, reach_target
 from gym_soarm.units import FEATURE_NAMES, RADIANS, UNITS, joint_units
 from gym_soarm.validation import check_choice, check_int

@@ -46,7 +46,6 @@ Timings on a shared machine are noisy: read the medians and the ratios.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import math
@@ -64,6 +63,7 @@ from pathlib import Path
 from typing import Any
 
 from gym_soarm.tasks import DEFAULT_TASK
+from gym_soarm.tools.timings import spread
 
 DEFAULT_CONFIGS: tuple[str, ...] = (
     "state",
@@ -175,15 +175,6 @@ class BenchConfig:
                 observation_height=self.height,
             )
         return kwargs
-
-
-def _spread(values: Sequence[float]) -> dict[str, Any]:
-    return {
-        "median": statistics.median(values),
-        "min": min(values),
-        "max": max(values),
-        "repeats": list(values),
-    }
 
 
 def _peak_rss_mb() -> float | None:
@@ -351,7 +342,7 @@ def _measure_vector(config: BenchConfig, seconds: float, repeats: int, processes
             rates.append(n * processes / (time.perf_counter() - t0))
     finally:
         envs.close()
-    return {"processes": processes, "make_s": make_s, "steps_per_s": _spread(rates)}
+    return {"processes": processes, "make_s": make_s, "steps_per_s": spread(rates)}
 
 
 def _measure_cold_make(visual: str, task: str = DEFAULT_TASK) -> dict:
@@ -576,7 +567,7 @@ def measure_config(
     env_rates = [r["steps"] / r["seconds"] for r in env_runs]
     step_ms = [r["seconds"] / r["steps"] * 1e3 for r in env_runs]
     render_ms = [r["render_seconds"] / r["steps"] * 1e3 for r in env_runs]
-    result["steps_per_s"] = _spread(env_rates)
+    result["steps_per_s"] = spread(env_rates)
     result["ms_per_step"] = {
         "total": statistics.median(step_ms),
         "render": statistics.median(render_ms),
@@ -589,7 +580,7 @@ def measure_config(
             if config.renders
             else f"mujoco.mj_step x{ready['substeps']}"
         ),
-        "steps_per_s": _spread(ceiling_rates),
+        "steps_per_s": spread(ceiling_rates),
         "ms_per_step": 1e3 / statistics.median(ceiling_rates),
     }
     if "gl_renderer" in ceiling_ready:
@@ -708,8 +699,8 @@ def measure_recording(
                 got = runs[name]
                 rates = [r["episodes_per_min"] for r in got]
                 row.update(
-                    episodes_per_min=_spread(rates),
-                    seconds=_spread([r["seconds"] for r in got]),
+                    episodes_per_min=spread(rates),
+                    seconds=spread([r["seconds"] for r in got]),
                     episodes=[r["episodes"] for r in got],
                     dataset_episodes=[r["dataset_episodes"] for r in got],
                     frames=[r["frames"] for r in got],
@@ -1009,7 +1000,11 @@ def run(
     }
 
 
-def _worker_main(job_text: str) -> None:
+def serve_worker(job_text: str) -> None:
+    """Run one measurement job (JSON from the parent) in this process and emit its result.
+
+    The benchmark starts each job as ``python -m gym_soarm.bench --worker <json>``.
+    """
     job = json.loads(job_text)
     kind = job["kind"]
     if kind == "env":
@@ -1046,183 +1041,3 @@ def _worker_main(job_text: str) -> None:
     else:
         raise ValueError(f"unknown worker job {kind!r}")
     _emit("RESULT", out)
-
-
-def _print_scale(report: dict[str, Any]) -> None:
-    from gym_soarm.tools import bench_vector
-
-    for scaling in report["vector_scaling"]:
-        if "error" in scaling:
-            print(f"\nvector scaling ({scaling['obs']}): failed: {scaling['error']}")
-            continue
-        print(f"\nvector scaling, {bench_vector.title(scaling)}")
-        print(bench_vector.format_table(scaling))
-    recording = report["recording"]
-    if recording is not None:
-        print(
-            f"\nrecording {recording['episodes']} {recording['task']} episodes "
-            f"(whole record() call, start-up included; medians of {recording['repeats']})"
-        )
-        print(format_recording(recording))
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line entry point; returns the process exit code."""
-    parser = argparse.ArgumentParser(
-        prog="python -m gym_soarm.bench",
-        description="Measure env steps/s, make/reset time and memory against MuJoCo's own "
-        "ceiling (bare mj_step, bare mujoco.Renderer) on this machine.",
-    )
-    parser.add_argument(
-        "--configs",
-        default=",".join(DEFAULT_CONFIGS),
-        help="comma-separated configurations: 'state' or '{front_only|front_wrist|all}_{W}x{H}'"
-        " with an optional '_fast'/'_high' suffix (default: %(default)s)",
-    )
-    parser.add_argument(
-        "--seconds",
-        type=float,
-        default=DEFAULT_SECONDS,
-        help="duration of each repeat (default: %(default)s)",
-    )
-    parser.add_argument(
-        "--repeats",
-        type=int,
-        default=DEFAULT_REPEATS,
-        help="timed repeats per measurement; medians are reported (default: %(default)s)",
-    )
-    parser.add_argument(
-        "--processes",
-        type=int,
-        default=1,
-        help="also step N environments in an AsyncVectorEnv and report aggregate steps/s",
-    )
-    parser.add_argument(
-        "--json", default=DEFAULT_JSON, help="where to write the results (default: %(default)s)"
-    )
-    parser.add_argument(
-        "--task",
-        default=DEFAULT_TASK,
-        help="the registered task to measure (default: %(default)s, the scene of SoArm-v0)",
-    )
-    parser.add_argument(
-        "--control-mode",
-        default=DEFAULT_CONTROL_MODE,
-        help="the control mode to measure, with random actions of its own action space: "
-        "joint_pos, joint_delta, ee_delta or ee_pose (default: %(default)s)",
-    )
-    parser.add_argument(
-        "--vector-scaling",
-        default="",
-        metavar="COUNTS",
-        help="also measure vector envs (native threads, AsyncVectorEnv, SyncVectorEnv) at "
-        "these comma-separated num_envs, e.g. 1,2,4,8,16, against one env",
-    )
-    parser.add_argument(
-        "--vector-obs",
-        default="state",
-        help="observations of --vector-scaling: comma-separated 'state' and camera configs, "
-        "e.g. state,front_wrist (default: %(default)s)",
-    )
-    parser.add_argument(
-        "--vector-modes",
-        default="native,async,sync",
-        help="vector envs of --vector-scaling (default: %(default)s)",
-    )
-    parser.add_argument(
-        "--image-size",
-        default="96x128",
-        metavar="HxW",
-        help="image size of the cameras of --vector-obs and --recording-cameras "
-        "(default: %(default)s)",
-    )
-    parser.add_argument(
-        "--recording",
-        type=int,
-        default=0,
-        metavar="WORKERS",
-        help="also measure recording throughput (episodes/min) with 1 and WORKERS processes",
-    )
-    parser.add_argument(
-        "--recording-ray",
-        action="store_true",
-        help="with --recording, also record as Ray tasks on a local cluster (needs ray)",
-    )
-    parser.add_argument(
-        "--recording-episodes",
-        type=int,
-        default=6,
-        help="LiftCube-v0 episodes per recording (default: %(default)s)",
-    )
-    parser.add_argument(
-        "--recording-cameras",
-        default="none,front_wrist",
-        help="camera configs recorded, 'none' for state only (default: %(default)s)",
-    )
-    parser.add_argument("--worker", help=argparse.SUPPRESS)
-    args = parser.parse_args(argv)
-    if args.worker:
-        _worker_main(args.worker)
-        return 0
-    configs = [c.strip() for c in args.configs.split(",") if c.strip()]
-    try:
-        counts = [int(c) for c in args.vector_scaling.split(",") if c.strip()]
-        height, width = (int(v) for v in args.image_size.lower().split("x"))
-    except ValueError:
-        parser.error(
-            "--vector-scaling must be comma-separated integers and --image-size HEIGHTxWIDTH; "
-            f"got {args.vector_scaling!r} and {args.image_size!r}"
-        )
-    try:
-        report = run(
-            configs,
-            args.seconds,
-            args.repeats,
-            args.processes,
-            progress=lambda m: print(m, file=sys.stderr, flush=True),
-            task=args.task,
-            control_mode=args.control_mode,
-            vector_scaling=counts,
-            vector_obs=[o.strip() for o in args.vector_obs.split(",") if o.strip()],
-            vector_modes=[m.strip() for m in args.vector_modes.split(",") if m.strip()],
-            image_size=(height, width),
-            recording=args.recording,
-            recording_ray=args.recording_ray,
-            recording_episodes=args.recording_episodes,
-            recording_cameras=[c.strip() for c in args.recording_cameras.split(",") if c.strip()],
-        )
-    except ValueError as exc:
-        parser.error(str(exc))
-    machine = report["machine"]
-    gl = (
-        f", GL: {machine['gl_backend']} ({machine['gl_renderer']})" if machine["gl_backend"] else ""
-    )
-    print(
-        f"\n{machine['cpu']} ({machine['cpu_count']} cores){gl}, load average "
-        f"{machine['load_average_start']}, control mode {report['settings']['control_mode']}"
-    )
-    if report["configs"]:
-        print(format_table(report["configs"]))
-    for cold in report["cold_make"]:
-        if "error" in cold:
-            print(f"cold make ({cold['visual']}): failed: {cold['error']}")
-        else:
-            print(f"cold make ({cold['visual']} meshes, empty cache): {cold['make_s']:.2f} s")
-    _print_scale(report)
-    for check in report["targets"]:
-        sign = ">=" if check["kind"] == "min" else "<"
-        status = "met" if check["met"] else "NOT met"
-        print(
-            f"target {check['config']} {check['figure']} {sign} {check['bound']:g}: "
-            f"{check['value']:.4g} ({status})"
-        )
-    Path(args.json).write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
-    print(f"wrote {args.json}")
-    failed = any("error" in r for r in report["configs"] + report["vector_scaling"])
-    if report["recording"] is not None:
-        failed = failed or any("error" in r for r in report["recording"]["rows"])
-    return 1 if failed else 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

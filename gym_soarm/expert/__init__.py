@@ -151,8 +151,3 @@ __all__ = [
     "make_expert",
     "run_episode",
 ]
-
-if __name__ == "__main__":
-    from gym_soarm.cli.expert import main
-
-    main()

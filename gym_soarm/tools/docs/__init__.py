@@ -35,9 +35,3 @@ def env_table() -> str:
             f"| {ids} | {spec.summary} | {instruction} | {spec.max_episode_steps} | {start} |"
         )
     return "\n".join(rows)
-
-
-if __name__ == "__main__":
-    from gym_soarm.cli.docs import main
-
-    main()

@@ -19,11 +19,8 @@ steps/s over the single environment's in the same round.
 
 from __future__ import annotations
 
-import argparse
-import json
 import os
 import statistics
-import sys
 import time
 from collections.abc import Sequence
 from typing import Any
@@ -32,7 +29,7 @@ import gymnasium as gym
 import numpy as np
 
 import gym_soarm  # noqa: F401  (registers the environments)
-from gym_soarm.tools.bench import _spread
+from gym_soarm.tools.timings import spread
 
 DEFAULT_ENV_ID = "gym_soarm/LiftCube-v0"
 VECTOR_MODES: tuple[str, ...] = ("native", "async", "sync")
@@ -168,7 +165,7 @@ def measure(
                     {
                         "mode": mode,
                         "num_envs": n,
-                        "steps_per_s": _spread(rates[mode]),
+                        "steps_per_s": spread(rates[mode]),
                         "single_steps_per_s": statistics.median(rates["single"]),
                         "speedup": statistics.median(
                             v / s for v, s in zip(rates[mode], rates["single"], strict=True)
@@ -219,49 +216,3 @@ def title(report: dict[str, Any]) -> str:
         f"{report['env_id']}, {obs}: one env {report['single_steps_per_s']:,.0f} steps/s "
         f"({report['cpus']} cores{load_text})"
     )
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command-line entry point; prints a table (and writes JSON with ``--json``)."""
-    parser = argparse.ArgumentParser(prog="python -m gym_soarm.tools.bench_vector")
-    parser.add_argument("--env-id", default=DEFAULT_ENV_ID)
-    parser.add_argument("--num-envs", default="1,2,4,8,16", help="counts, comma-separated")
-    parser.add_argument("--obs", default="state", help="'state' or a camera config")
-    parser.add_argument("--size", default="96x128", help="image HEIGHTxWIDTH for pixels")
-    parser.add_argument("--modes", default=",".join(VECTOR_MODES), help="vector envs measured")
-    parser.add_argument("--seconds", type=float, default=1.0, help="seconds per measurement")
-    parser.add_argument("--rounds", type=int, default=3, help="alternating rounds (medians)")
-    parser.add_argument("--threads", type=int, default=None, help="native env's threads")
-    parser.add_argument("--json", default=None, help="write the figures to this file")
-    args = parser.parse_args(argv)
-    try:
-        counts = [int(c) for c in args.num_envs.split(",") if c.strip()]
-        height, width = (int(v) for v in args.size.lower().split("x"))
-    except ValueError:
-        parser.error(
-            f"--num-envs must be comma-separated ints and --size HEIGHTxWIDTH; got "
-            f"{args.num_envs!r} and {args.size!r}"
-        )
-    modes = [m.strip() for m in args.modes.split(",") if m.strip()]
-    try:
-        report = measure(
-            args.env_id,
-            counts,
-            args.obs,
-            (height, width),
-            args.seconds,
-            args.rounds,
-            args.threads,
-            modes,
-        )
-    except ValueError as exc:
-        parser.error(str(exc))
-    sys.stdout.write(title(report) + "\n" + format_table(report) + "\n")
-    if args.json:
-        with open(args.json, "w", encoding="utf-8") as file:
-            json.dump(report, file, indent=2)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,0 +1,199 @@
+"""``python -m gym_soarm.bench`` (``gym-soarm-bench``): the speed benchmark.
+
+Parses the command line, runs :func:`gym_soarm.tools.bench.run` and prints its tables,
+checked targets and the JSON file it wrote. ``--worker`` (hidden) is how the benchmark
+starts each measurement in a fresh process of its own
+(:func:`gym_soarm.tools.bench.serve_worker`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from gym_soarm.tasks import DEFAULT_TASK
+from gym_soarm.tools import bench, bench_vector
+
+
+def _print_scale(report: dict[str, Any]) -> None:
+    for scaling in report["vector_scaling"]:
+        if "error" in scaling:
+            print(f"\nvector scaling ({scaling['obs']}): failed: {scaling['error']}")
+            continue
+        print(f"\nvector scaling, {bench_vector.title(scaling)}")
+        print(bench_vector.format_table(scaling))
+    recording = report["recording"]
+    if recording is not None:
+        print(
+            f"\nrecording {recording['episodes']} {recording['task']} episodes "
+            f"(whole record() call, start-up included; medians of {recording['repeats']})"
+        )
+        print(bench.format_recording(recording))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command line entry point; returns the process exit code."""
+    parser = argparse.ArgumentParser(
+        prog="python -m gym_soarm.bench",
+        description="Measure env steps/s, make/reset time and memory against MuJoCo's own "
+        "ceiling (bare mj_step, bare mujoco.Renderer) on this machine.",
+    )
+    parser.add_argument(
+        "--configs",
+        default=",".join(bench.DEFAULT_CONFIGS),
+        help="comma-separated configurations: 'state' or '{front_only|front_wrist|all}_{W}x{H}'"
+        " with an optional '_fast'/'_high' suffix (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--seconds",
+        type=float,
+        default=bench.DEFAULT_SECONDS,
+        help="duration of each repeat (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--repeats",
+        type=int,
+        default=bench.DEFAULT_REPEATS,
+        help="timed repeats per measurement; medians are reported (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--processes",
+        type=int,
+        default=1,
+        help="also step N environments in an AsyncVectorEnv and report aggregate steps/s",
+    )
+    parser.add_argument(
+        "--json",
+        default=bench.DEFAULT_JSON,
+        help="where to write the results (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--task",
+        default=DEFAULT_TASK,
+        help="the registered task to measure (default: %(default)s, the scene of SoArm-v0)",
+    )
+    parser.add_argument(
+        "--control-mode",
+        default=bench.DEFAULT_CONTROL_MODE,
+        help="the control mode to measure, with random actions of its own action space: "
+        "joint_pos, joint_delta, ee_delta or ee_pose (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--vector-scaling",
+        default="",
+        metavar="COUNTS",
+        help="also measure vector envs (native threads, AsyncVectorEnv, SyncVectorEnv) at "
+        "these comma-separated num_envs, e.g. 1,2,4,8,16, against one env",
+    )
+    parser.add_argument(
+        "--vector-obs",
+        default="state",
+        help="observations of --vector-scaling: comma-separated 'state' and camera configs, "
+        "e.g. state,front_wrist (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--vector-modes",
+        default="native,async,sync",
+        help="vector envs of --vector-scaling (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--image-size",
+        default="96x128",
+        metavar="HxW",
+        help="image size of the cameras of --vector-obs and --recording-cameras "
+        "(default: %(default)s)",
+    )
+    parser.add_argument(
+        "--recording",
+        type=int,
+        default=0,
+        metavar="WORKERS",
+        help="also measure recording throughput (episodes/min) with 1 and WORKERS processes",
+    )
+    parser.add_argument(
+        "--recording-ray",
+        action="store_true",
+        help="with --recording, also record as Ray tasks on a local cluster (needs ray)",
+    )
+    parser.add_argument(
+        "--recording-episodes",
+        type=int,
+        default=6,
+        help="LiftCube-v0 episodes per recording (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--recording-cameras",
+        default="none,front_wrist",
+        help="camera configs recorded, 'none' for state only (default: %(default)s)",
+    )
+    parser.add_argument("--worker", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.worker:
+        bench.serve_worker(args.worker)
+        return 0
+    configs = [c.strip() for c in args.configs.split(",") if c.strip()]
+    try:
+        counts = [int(c) for c in args.vector_scaling.split(",") if c.strip()]
+        height, width = (int(v) for v in args.image_size.lower().split("x"))
+    except ValueError:
+        parser.error(
+            "--vector-scaling must be comma-separated integers and --image-size HEIGHTxWIDTH; "
+            f"got {args.vector_scaling!r} and {args.image_size!r}"
+        )
+    try:
+        report = bench.run(
+            configs,
+            args.seconds,
+            args.repeats,
+            args.processes,
+            progress=lambda m: print(m, file=sys.stderr, flush=True),
+            task=args.task,
+            control_mode=args.control_mode,
+            vector_scaling=counts,
+            vector_obs=[o.strip() for o in args.vector_obs.split(",") if o.strip()],
+            vector_modes=[m.strip() for m in args.vector_modes.split(",") if m.strip()],
+            image_size=(height, width),
+            recording=args.recording,
+            recording_ray=args.recording_ray,
+            recording_episodes=args.recording_episodes,
+            recording_cameras=[c.strip() for c in args.recording_cameras.split(",") if c.strip()],
+        )
+    except ValueError as exc:
+        parser.error(str(exc))
+    machine = report["machine"]
+    gl = (
+        f", GL: {machine['gl_backend']} ({machine['gl_renderer']})" if machine["gl_backend"] else ""
+    )
+    print(
+        f"\n{machine['cpu']} ({machine['cpu_count']} cores){gl}, load average "
+        f"{machine['load_average_start']}, control mode {report['settings']['control_mode']}"
+    )
+    if report["configs"]:
+        print(bench.format_table(report["configs"]))
+    for cold in report["cold_make"]:
+        if "error" in cold:
+            print(f"cold make ({cold['visual']}): failed: {cold['error']}")
+        else:
+            print(f"cold make ({cold['visual']} meshes, empty cache): {cold['make_s']:.2f} s")
+    _print_scale(report)
+    for check in report["targets"]:
+        sign = ">=" if check["kind"] == "min" else "<"
+        status = "met" if check["met"] else "NOT met"
+        print(
+            f"target {check['config']} {check['figure']} {sign} {check['bound']:g}: "
+            f"{check['value']:.4g} ({status})"
+        )
+    Path(args.json).write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+    print(f"wrote {args.json}")
+    failed = any("error" in r for r in report["configs"] + report["vector_scaling"])
+    if report["recording"] is not None:
+        failed = failed or any("error" in r for r in report["recording"]["rows"])
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
