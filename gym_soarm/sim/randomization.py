@@ -145,6 +145,29 @@ class Sts3215Servo:
         return np.array(output)
 
 
+def arm_indices(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+    """The six servos' actuator ids and the six joints' dof addresses, in JOINT_NAMES order."""
+    joint, actuator = mujoco.mjtObj.mjOBJ_JOINT, mujoco.mjtObj.mjOBJ_ACTUATOR
+    actuators = np.array([mujoco.mj_name2id(model, actuator, n) for n in constants.JOINT_NAMES])
+    dofs = np.array(
+        [model.jnt_dofadr[mujoco.mj_name2id(model, joint, n)] for n in constants.JOINT_NAMES]
+    )
+    return actuators, dofs
+
+
+def set_servo_gains(
+    model: mujoco.MjModel, actuators: np.ndarray, kp: np.ndarray, kv: np.ndarray
+) -> None:
+    """Write position servos' gains in place: force ``kp * (target - q) - kv * qdot``.
+
+    A MuJoCo position actuator keeps ``kp`` as ``gainprm[0]`` and ``-kp``, ``-kv`` as
+    ``biasprm[1]``, ``biasprm[2]``; nothing needs recompiling.
+    """
+    model.actuator_gainprm[actuators, 0] = kp
+    model.actuator_biasprm[actuators, 1] = -np.asarray(kp)
+    model.actuator_biasprm[actuators, 2] = -np.asarray(kv)
+
+
 def _rotation_quat(axis: np.ndarray, angle: float) -> np.ndarray:
     half = angle / 2.0
     return np.concatenate([[math.cos(half)], math.sin(half) * axis / np.linalg.norm(axis)])
@@ -209,14 +232,7 @@ class Randomizer:
         self._object_geoms = {
             n: np.flatnonzero(m.geom_bodyid == b) for n, b in self._object_bodies.items()
         }
-        joint = mujoco.mjtObj.mjOBJ_JOINT
-        self._arm_dofs = np.array(
-            [m.jnt_dofadr[mujoco.mj_name2id(m, joint, n)] for n in constants.JOINT_NAMES]
-        )
-        actuator = mujoco.mjtObj.mjOBJ_ACTUATOR
-        self._actuators = np.array(
-            [mujoco.mj_name2id(m, actuator, n) for n in constants.JOINT_NAMES]
-        )
+        self._actuators, self._arm_dofs = arm_indices(m)
         self._saved = {
             field: getattr(m, field).copy()
             for field in (
@@ -337,9 +353,12 @@ class Randomizer:
             bodies[name] = {"mass_scale": _round(mass), "friction_scale": _round(friction)}
         ids = self._actuators
         kp, kv = scales(len(ids)), scales(len(ids))
-        m.actuator_gainprm[ids, 0] = saved["actuator_gainprm"][ids, 0] * kp
-        m.actuator_biasprm[ids, 1] = saved["actuator_biasprm"][ids, 1] * kp
-        m.actuator_biasprm[ids, 2] = saved["actuator_biasprm"][ids, 2] * kv
+        set_servo_gains(
+            m,
+            ids,
+            saved["actuator_gainprm"][ids, 0] * kp,
+            -saved["actuator_biasprm"][ids, 2] * kv,
+        )
         damping = scales(len(self._arm_dofs))
         m.dof_damping[self._arm_dofs] = saved["dof_damping"][self._arm_dofs] * damping
         delay = int(rng.integers(0, r.max_delay_steps + 1)) if r.max_delay_steps else 0
