@@ -1,1 +1,7 @@
-"""Command-line programs of gym_soarm; each also runs as ``python -m gym_soarm.<name>``."""
+"""Command-line programs of gym_soarm: each is one module here, with its ``main``.
+
+The console scripts (``gym-soarm-<name>``) call it, and so does ``python -m
+gym_soarm.<name>`` through ``gym_soarm/<name>/__main__.py`` (``bench_vector`` and
+``docs`` run as ``python -m gym_soarm.tools.<name>``). Library modules hold no
+``__main__`` block; ``tests/test_architecture.py`` checks it.
+"""
