@@ -18,10 +18,15 @@ from __future__ import annotations
 
 import ast
 import re
+import subprocess
+import sys
 from pathlib import Path
+
+import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "gym_soarm"
 PYPROJECT = PACKAGE.parent / "pyproject.toml"
+README = PACKAGE.parent / "README.md"
 
 
 def _module_name(path: Path, root: Path) -> str:
@@ -206,3 +211,22 @@ def test_the_main_block_checker_sees_both_spellings(tmp_path):
     other.write_text("if __name__ == 'gym_soarm':\n    pass\n")
     assert has_main_block(block) and has_main_block(reversed_)
     assert not has_main_block(other)
+
+
+def readme_programs(readme: Path = README) -> list[str]:
+    """Every ``python -m gym_soarm...`` module name the README gives, sorted."""
+    return sorted(set(re.findall(r"python -m (gym_soarm(?:\.\w+)+)", readme.read_text())))
+
+
+@pytest.mark.parametrize("module", readme_programs())
+def test_every_python_m_name_of_the_readme_runs(module):
+    result = subprocess.run(
+        [sys.executable, "-m", module, "--help"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=PACKAGE.parent,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    expected = "| id | task |" if module == "gym_soarm.tools.docs" else f"usage: python -m {module}"
+    assert expected in result.stdout, result.stdout[-3000:]
