@@ -109,6 +109,29 @@ IK_POSITION_TOLERANCE_M = 1e-5
 """Inverse kinematics stops within 10 micrometres of the commanded position..."""
 IK_PITCH_TOLERANCE_RAD = 1e-4
 """... and 0.1 milliradian of the commanded pitch."""
+EE_DELTA_YIELD_M = 1e-3
+"""``ee_delta``: when the new targets leave the jaw centre further than this from the
+commanded position (the commanded pitch is out of reach there), the pitch yields."""
+PITCH_YIELD_RAD: tuple[float, ...] = (
+    0.05,
+    -0.05,
+    0.1,
+    -0.1,
+    0.2,
+    -0.2,
+    0.4,
+    -0.4,
+    0.8,
+    -0.8,
+    1.6,
+    -1.6,
+)
+"""The changes of the commanded pitch that ``ee_delta`` tries, smallest first, until
+the position is reached; it keeps the one that comes nearest."""
+RELAX_SHARES: tuple[float, ...] = (0.3, 0.6)
+"""Where no change of the pitch reaches the position from the current targets (joints
+pinned at their limits), ``ee_delta`` tries again from targets moved these shares of the
+way towards the middle of their ranges."""
 
 EE_POSE_NAMES: tuple[str, ...] = ("ee.x", "ee.y", "ee.z", "ee.pitch", "ee.roll", "gripper.pos")
 EE_DELTA_NAMES: tuple[str, ...] = (
@@ -303,7 +326,10 @@ class EndEffectorControl(ControlMode):
     def _solve(self, current: np.ndarray, goal: JawPose, gripper: float) -> np.ndarray:
         """Servo targets for ``goal`` from the current ones; records the IK's errors."""
         arm, position_error, angle_error = self.kinematics.solve_pose(
-            current[:_N_ARM], goal, IK_POSITION_TOLERANCE_M, IK_PITCH_TOLERANCE_RAD
+            current[:_N_ARM],
+            goal,
+            IK_POSITION_TOLERANCE_M,
+            IK_PITCH_TOLERANCE_RAD,
         )
         self._errors = (position_error, angle_error)
         targets = np.empty(len(constants.JOINT_NAMES))
@@ -348,7 +374,31 @@ class EndEffectorDeltaControl(EndEffectorControl):
             now.pitch + float(action[3]),
             now.roll + float(action[4]),
         )
-        return self._solve(current_rad, goal, float(action[5]))
+        gripper = float(action[5])
+        targets = self._solve(current_rad, goal, gripper)
+        if self._errors[0] <= EE_DELTA_YIELD_M:
+            return targets
+        # Position first: the commanded pitch and the position cannot both be reached
+        # (a joint at its limit); let the pitch yield by the least that reaches the
+        # position, or comes nearest it.
+        best, best_error = targets, self._errors[0]
+        middle = (self._low + self._high) / 2.0
+        starts = [current_rad, *(current_rad + s * (middle - current_rad) for s in RELAX_SHARES)]
+        for start in starts:
+            for offset in PITCH_YIELD_RAD:
+                trial = JawPose(goal.position, goal.pitch + offset, goal.roll)
+                candidate = self._solve(start, trial, gripper)
+                if self._errors[0] < best_error - IK_POSITION_TOLERANCE_M:
+                    best, best_error = candidate, self._errors[0]
+                    if best_error <= EE_DELTA_YIELD_M:
+                        break
+            if best_error <= EE_DELTA_YIELD_M:
+                break
+        reached = self.kinematics.jaw_pose(best[:_N_ARM])
+        pitch_error = math.remainder(goal.pitch - reached.pitch, math.tau)
+        roll_error = math.remainder(goal.roll - reached.roll, math.tau)
+        self._errors = (best_error, math.hypot(pitch_error, roll_error))
+        return best
 
     def action_for_targets(self, targets_rad: np.ndarray, current_rad: np.ndarray) -> np.ndarray:
         now = self.pose(current_rad)
@@ -400,8 +450,73 @@ class EndEffectorPoseControl(EndEffectorControl):
         return np.clip(action, self._action_low, self._action_high).astype(np.float32)
 
 
-def make_control(mode: str, physics: SoArmPhysics, units: JointUnits) -> ControlMode:
+class NormalizedControl(ControlMode):
+    """``normalize_actions=True``: any mode's actions in ``Box(-1, 1, (6,), float32)``.
+
+    Each value maps linearly onto the mode's own Box: -1 to its low bound, +1 to its high
+    bound (0 to the middle: in ``joint_delta`` and ``ee_delta`` a zero change, in
+    ``joint_pos`` the middle of each joint's range). Values outside [-1, 1] are clipped.
+    The rest of the mode (its names, its ``info``, :meth:`pose` in the ee modes) is the
+    wrapped mode's.
+
+    Args:
+        mode: the control mode whose actions are rescaled.
+    """
+
+    def __init__(self, mode: ControlMode) -> None:
+        self.mode = mode
+        self.name = mode.name
+        self.action_names = mode.action_names
+        native = mode.action_space
+        self.native_space = native
+        self._low = native.low.astype(np.float64)
+        self._half_range = (native.high.astype(np.float64) - self._low) / 2.0
+        n = native.shape[0]
+        self.action_space = spaces.Box(-1.0, 1.0, (n,), dtype=np.float32)
+        self.description = (
+            f"{n} values in [-1, 1], each mapped linearly onto {mode.name}'s own range "
+            f"(-1 its low bound, +1 its high bound): {mode.description}"
+        )
+
+    def __getattr__(self, name: str) -> Any:
+        # Only reached for attributes this class lacks: the wrapped mode's own (``pose``).
+        if name == "mode":
+            raise AttributeError(name)
+        return getattr(self.mode, name)
+
+    def to_native(self, action: np.ndarray) -> np.ndarray:
+        """The wrapped mode's action for a normalised one (clipped to [-1, 1] first)."""
+        clipped = np.minimum(np.maximum(action, -1.0), 1.0)
+        return self._low + (clipped + 1.0) * self._half_range
+
+    def to_normalized(self, native: np.ndarray) -> np.ndarray:
+        """The normalised action (float32, within [-1, 1]) for a wrapped mode's one."""
+        scaled = (np.asarray(native, dtype=np.float64) - self._low) / self._half_range - 1.0
+        return np.clip(scaled, -1.0, 1.0).astype(np.float32)
+
+    def targets(self, action: np.ndarray, current_rad: np.ndarray) -> np.ndarray:
+        return self.mode.targets(self.to_native(action), current_rad)
+
+    def action_for_targets(self, targets_rad: np.ndarray, current_rad: np.ndarray) -> np.ndarray:
+        return self.to_normalized(self.mode.action_for_targets(targets_rad, current_rad))
+
+    def reset(self) -> None:
+        self.mode.reset()
+
+    def info(self) -> dict[str, float]:
+        return self.mode.info()
+
+
+def make_control(
+    mode: str, physics: SoArmPhysics, units: JointUnits, normalize: bool = False
+) -> ControlMode:
     """The control mode ``mode`` of an environment with ``physics`` and ``units``.
+
+    Args:
+        mode: one of :data:`CONTROL_MODES`.
+        physics: the environment's physics (servo ranges, the model for the ee modes).
+        units: the env's joint units.
+        normalize: wrap the mode in :class:`NormalizedControl` (actions in [-1, 1]).
 
     Raises:
         ValueError: ``mode`` is not one of :data:`CONTROL_MODES`.
@@ -409,13 +524,16 @@ def make_control(mode: str, physics: SoArmPhysics, units: JointUnits) -> Control
     check_choice("control_mode", mode, CONTROL_MODES)
     low, high = physics.control_range()
     if mode == JOINT_POS:
-        return JointPositionControl(units, low, high)
-    if mode == JOINT_DELTA:
-        return JointDeltaControl(units, low, high)
-    kinematics = ArmKinematics(physics.model.ptr, max_iterations=IK_MAX_ITERATIONS)
-    if mode == EE_DELTA:
-        return EndEffectorDeltaControl(units, low, high, kinematics)
-    return EndEffectorPoseControl(units, low, high, kinematics)
+        control: ControlMode = JointPositionControl(units, low, high)
+    elif mode == JOINT_DELTA:
+        control = JointDeltaControl(units, low, high)
+    else:
+        kinematics = ArmKinematics(physics.model.ptr, max_iterations=IK_MAX_ITERATIONS)
+        if mode == EE_DELTA:
+            control = EndEffectorDeltaControl(units, low, high, kinematics)
+        else:
+            control = EndEffectorPoseControl(units, low, high, kinematics)
+    return NormalizedControl(control) if normalize else control
 
 
 def action_names(mode: str) -> tuple[str, ...]:

@@ -18,6 +18,7 @@ from gymnasium import spaces
 
 from gym_soarm import constants
 from gym_soarm.control import CONTROL_MODES, ControlMode, make_control
+from gym_soarm.dynamics import apply_dynamics, load_dynamics
 from gym_soarm.render.backend import RENDER_QUALITIES
 from gym_soarm.render.camera import CameraRenderer
 from gym_soarm.sim.physics import SoArmPhysics
@@ -25,9 +26,11 @@ from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS, STS3215, Randomize
 from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.base import Task, TaskSpec
 from gym_soarm.tasks.distractors import MAX_DISTRACTORS, place_distractors, with_distractors
+from gym_soarm.tasks.state_observation import StateObservation
 from gym_soarm.units import UNITS, JointUnits, check_wrist_roll_offset, joint_units
 from gym_soarm.validation import (
     ArgumentTypeError,
+    check_bool,
     check_choice,
     check_image_size,
     check_int,
@@ -36,7 +39,9 @@ from gym_soarm.validation import (
     resolve_camera_config,
 )
 
-OBS_TYPES = ("pixels", "pixels_agent_pos", "environment_state_agent_pos")
+OBS_TYPES = ("pixels", "pixels_agent_pos", "environment_state_agent_pos", "state")
+STATE_OBS_TYPES = ("environment_state_agent_pos", "state")
+"""The observation types that render nothing."""
 REWARD_TYPES = ("dense", "sparse")
 PLACEMENTS = ("grid", "uniform")
 IMAGE_MODALITIES = ("rgb", "depth", "segmentation")
@@ -79,6 +84,11 @@ class SoArmEnv(gym.Env):
       where ``environment_state`` follows the task's :attr:`state_layout` (pick-and-place:
       cube position (3, m), cube quaternion (w, x, y, z), ``gripperframe`` site position
       (3, m) and goal position (3, m)). Renders nothing.
+    * ``"state"``: one flat ``float32 (N,)`` vector for state policies: joint angles and
+      velocities, the commanded servo targets, the jaws' centre, the task's environment
+      state and the vectors from the jaws to each object and from each object to its
+      goal, in radians and metres; :attr:`observation_names` names every value (see
+      :mod:`gym_soarm.tasks.state_observation`). Renders nothing.
 
     With ``image_modalities`` beyond ``("rgb",)``, pixel observations hold one dict of
     cameras per modality, keyed ``"pixels"`` (uint8 (H, W, 3), when ``"rgb"`` is asked),
@@ -91,6 +101,12 @@ class SoArmEnv(gym.Env):
     default; with ``units="lerobot"`` the body joints in degrees and the gripper in 0 to
     100 (0 = closed), as LeRobot's SO-101 follower; with ``units="lerobot_range"`` the
     body joints in -100 to 100 (see :mod:`gym_soarm.units`). The action bounds follow.
+
+    **Reward** (``reward_type="dense"``): the task's named terms (``info["reward_terms"]``,
+    each in [0, 1]) weighted to a total in [0, 1]; the step that succeeds (and ends the
+    episode) pays 1 plus 1 for every step left until the step limit, what the rest of
+    the episode could have earned at the most, so reaching success always pays more
+    than hovering short of it. ``"sparse"``: 1.0 on the success step, else 0.0.
 
     **Diverging physics**: when a step leaves the simulation with NaN/inf, raises a
     MuJoCo instability warning, throws an object more than 5 m or turns a joint past
@@ -121,6 +137,11 @@ class SoArmEnv(gym.Env):
             calibration JSON: actions, ``agent_pos`` and their bounds are then that arm's
             values, as LeRobot's motor bus normalises them (see
             :mod:`gym_soarm.calibration`). None: the fixed maps of :mod:`gym_soarm.units`.
+        dynamics: the path of a ``gym_soarm.dynamics/1`` JSON file (fitted to a real arm
+            by ``python -m gym_soarm.sysid``): its servo gains, joint damping, armature,
+            friction loss and control delay replace the model's on this environment's
+            own model copy; with ``physics_randomization`` the draws centre on them (see
+            :mod:`gym_soarm.dynamics`). None: the model's own.
         image_modalities: images of each camera in pixel observations: a tuple of
             ``"rgb"``, ``"depth"`` and ``"segmentation"`` (see above); only these are
             rendered.
@@ -140,6 +161,9 @@ class SoArmEnv(gym.Env):
             the jaws' pose) or ``"ee_pose"`` (the jaws' pose); see
             :mod:`gym_soarm.control`. The ee modes add ``ik_error_m`` and
             ``ik_error_rad`` to ``info``.
+        normalize_actions: ``True``: actions are ``Box(-1, 1, (6,), float32)``, mapped
+            linearly onto the control mode's own Box (-1 to its low bound, +1 to its
+            high bound), for every control mode; the RL recipes use it.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": constants.RENDER_FPS}
@@ -165,6 +189,8 @@ class SoArmEnv(gym.Env):
         distractors: int = 0,
         control_mode: str = "joint_pos",
         calibration: str | os.PathLike[str] | None = None,
+        dynamics: str | os.PathLike[str] | None = None,
+        normalize_actions: bool = False,
     ) -> None:
         # Validate every argument before building anything.
         spec = get_task(task)
@@ -179,6 +205,7 @@ class SoArmEnv(gym.Env):
         check_choice("units", units, UNITS)
         wrist_roll_offset_deg = check_wrist_roll_offset(units, wrist_roll_offset_deg)
         joint_conversion = joint_units(units, wrist_roll_offset_deg, calibration)  # reads the file
+        fitted = None if dynamics is None else load_dynamics(dynamics)  # reads the file
         modalities = check_subset("image_modalities", image_modalities, IMAGE_MODALITIES)
         check_choice("visual_randomization", visual_randomization, LEVELS)
         check_choice("physics_randomization", physics_randomization, LEVELS)
@@ -187,10 +214,11 @@ class SoArmEnv(gym.Env):
         distractors = check_int("distractors", distractors, 0, MAX_DISTRACTORS)
         task_logic: Task = spec.make_task(object_placement)  # refuses an unsupported placement
         check_choice("control_mode", control_mode, CONTROL_MODES)
+        normalize_actions = check_bool("normalize_actions", normalize_actions)
 
         self.render_mode = render_mode
         self.obs_type = obs_type
-        self.cameras = cameras if obs_type != "environment_state_agent_pos" else ()
+        self.cameras = cameras if obs_type not in STATE_OBS_TYPES else ()
         self.camera_config = cameras
         self.observation_height = height
         self.observation_width = width
@@ -200,7 +228,9 @@ class SoArmEnv(gym.Env):
         self.units = units
         self.wrist_roll_offset_deg = wrist_roll_offset_deg
         self.control_mode = control_mode
+        self.normalize_actions = normalize_actions
         self.calibration = None if calibration is None else os.fspath(calibration)
+        self.dynamics = None if dynamics is None else os.fspath(dynamics)
         self._units = joint_conversion
         self.image_modalities = modalities
         self._rgb = "rgb" in modalities
@@ -230,6 +260,9 @@ class SoArmEnv(gym.Env):
         if servo_model == "sts3215":
             self._physics.set_servo_force_limit(STS3215.stall_torque_nm)
             self._servo = Sts3215Servo(constants.CONTROL_TIMESTEP_S)
+        if fitted is not None:  # before the randomiser saves the values it draws around
+            apply_dynamics(self._physics.model.ptr, fitted.joints)
+        self._fitted_delay_steps = 0 if fitted is None else fitted.delay_steps
         randomized = visual_randomization != "none" or physics_randomization != "none"
         self._randomizer = Randomizer(self._physics) if randomized else None
         self._report_variation = (
@@ -249,8 +282,8 @@ class SoArmEnv(gym.Env):
                 "object_placement": self.object_placement,
                 "distractors": [],
             }
-        self._delay_steps = 0
-        self._pending_target: np.ndarray | None = None
+        self._delay_steps = self._fitted_delay_steps
+        self._pending_targets: list[np.ndarray] = []
         self._viewer = None
         self._closed = False
         self._needs_reset = True
@@ -260,7 +293,10 @@ class SoArmEnv(gym.Env):
         self._last_info: dict[str, Any] = {}
 
         # The control mode turns an action into servo targets (clipped in radians).
-        self._control = make_control(control_mode, self._physics, self._units)
+        self._control = make_control(
+            control_mode, self._physics, self._units, normalize=normalize_actions
+        )
+        self._state_observation = StateObservation(task_logic)
         self._commanded = self._physics.joint_targets().copy()
         self.action_space = self._control.action_space
         self.observation_space = self._make_observation_space()
@@ -305,6 +341,8 @@ class SoArmEnv(gym.Env):
             if self.obs_type == "pixels_agent_pos":
                 layout["agent_pos"] = agent_pos
             return spaces.Dict(layout)
+        if self.obs_type == "state":
+            return self._state_observation.space
         env_state = spaces.Box(*self._task.state_bounds(), dtype=np.float64)
         return spaces.Dict(OrderedDict(agent_pos=agent_pos, environment_state=env_state))
 
@@ -331,6 +369,17 @@ class SoArmEnv(gym.Env):
         that ``joint_delta`` and ``ee_delta`` actions change (a copy)."""
         return self._commanded.copy()
 
+    def hold_servo_targets(self, targets: np.ndarray) -> None:
+        """Make the servos hold ``targets`` (rad, six) from now until the first actions
+        reach them (through the control delay, if any): for a replay that places the arm
+        after ``reset``. Call it between ``reset`` and the first ``step``."""
+        targets = np.asarray(targets, dtype=np.float64)
+        self._physics.set_joint_targets(targets)
+        self._pending_targets = [targets.copy() for _ in self._pending_targets]
+        self._commanded = targets.copy()
+        if self._servo is not None:
+            self._servo.reset(targets)
+
     @property
     def task_logic(self) -> Task:
         """The task object holding this environment's episode logic."""
@@ -355,6 +404,12 @@ class SoArmEnv(gym.Env):
     def state_names(self) -> tuple[str, ...]:
         """The name of each ``environment_state`` value (for datasets), in order."""
         return self._task.state_names
+
+    @property
+    def observation_names(self) -> tuple[str, ...]:
+        """The name of every value of an ``obs_type="state"`` observation, in order
+        (see :mod:`gym_soarm.tasks.state_observation`); the same for every obs type."""
+        return self._state_observation.names
 
     @property
     def segmentation_ids(self) -> dict[str, int]:
@@ -452,8 +507,10 @@ class SoArmEnv(gym.Env):
                 # Drawn after the task's placement, so a seed places the objects the
                 # same way at every level; applied before the reset's forward pass.
                 self._randomize()
-        if self._delay_steps:
-            self._pending_target = self._physics.joint_targets().copy()
+        # The servos hold the reset's targets until the first actions reach them.
+        self._pending_targets = [
+            self._physics.joint_targets().copy() for _ in range(self._delay_steps)
+        ]
         if self._servo is not None:
             self._servo.reset(self._physics.joint_targets())
         self._control.reset()
@@ -472,7 +529,8 @@ class SoArmEnv(gym.Env):
         assert self._randomizer is not None
         rng = self.np_random
         visual = self._randomizer.visual(self.visual_randomization, rng)
-        physical, self._delay_steps = self._randomizer.physics(self.physics_randomization, rng)
+        physical, drawn_delay = self._randomizer.physics(self.physics_randomization, rng)
+        self._delay_steps = self._fitted_delay_steps + drawn_delay
         self._variation.update(
             visual_randomization=self.visual_randomization,
             visual=visual,
@@ -494,8 +552,9 @@ class SoArmEnv(gym.Env):
         target = self._control.targets(array, self._commanded)
         self._commanded = target.copy()
         if self._delay_steps:
-            # The servos receive the previous step's action.
-            target, self._pending_target = self._pending_target, target
+            # The servos receive the action of ``_delay_steps`` steps before.
+            self._pending_targets.append(target)
+            target = self._pending_targets.pop(0)
         if self._servo is not None:
             target = self._servo(target)
         self._task.before_step(target, self._physics)
@@ -510,12 +569,32 @@ class SoArmEnv(gym.Env):
             return self._truncate_diverged_episode(divergence)
         success = self._task.is_success(self._physics)
         terms = self._task.reward_terms(self._physics, success=success)
-        reward = float(success) if self.reward_type == "sparse" else self._task.weights.total(terms)
+        if self.reward_type == "sparse":
+            reward = float(success)
+        elif success:
+            reward = self._success_reward()
+        else:
+            reward = self._task.weights.total(terms)
         obs = self._observation()
         info = self._info(success=success, terms=terms)
         if self._viewer is not None:
             self._viewer.show(info)
         return obs, reward, success, False, info
+
+    def _success_reward(self) -> float:
+        """The dense reward of a success step: 1, plus 1 for every step left to the limit.
+
+        What the episode would have earned at the most had it gone on to its step limit
+        (``spec.max_episode_steps``, else the task's), paid at once: an episode that
+        succeeds returns more than one that follows it to the step before and then hovers
+        short of success (every dense step of an unsuccessful state pays less than 1),
+        undiscounted and for every discount factor.
+        """
+        spec = self.spec
+        limit = spec.max_episode_steps if spec is not None and spec.max_episode_steps else None
+        if limit is None:
+            limit = self._spec.max_episode_steps
+        return float(1 + max(limit - self._step_count, 0))
 
     def render(self) -> np.ndarray | None:
         """The ``render_camera`` frame (``rgb_array``), or draw the window (``human``).
@@ -634,7 +713,9 @@ class SoArmEnv(gym.Env):
 
     def _observation(self) -> Any:
         physics = self._physics
-        if self.obs_type == "environment_state_agent_pos":
+        if self.obs_type == "state":
+            obs = self._state_observation(physics, self._commanded)
+        elif self.obs_type == "environment_state_agent_pos":
             obs = {
                 "agent_pos": self._units.from_radians(physics.joint_angles()),
                 "environment_state": self._task.environment_state(physics),

@@ -15,6 +15,8 @@ import numbers
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
+
 from gym_soarm import constants
 
 MIN_IMAGE_SIZE = 16
@@ -45,6 +47,16 @@ def check_choice(name: str, value: Any, valid: Sequence[Any], none_ok: bool = Fa
             f"{name} must be one of {options}; got {value!r}. Pass e.g. {name}={valid[0]!r}."
         )
     return value
+
+
+def check_bool(name: str, value: Any) -> bool:
+    """``value`` as a bool: True, False or a numpy bool (no ints, no strings)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ArgumentTypeError(
+            f"{name} must be True or False; got {value!r} ({type(value).__name__}). "
+            f"Pass e.g. {name}=True."
+        )
+    return bool(value)
 
 
 def check_int(name: str, value: Any, minimum: int, maximum: int | None = None) -> int:

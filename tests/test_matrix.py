@@ -26,6 +26,10 @@ def _check_observation(env: gym.Env, obs, cameras: tuple[str, ...], obs_type: st
         assert list(obs) == ["agent_pos", "environment_state"]
         assert all(np.isfinite(v).all() for v in obs.values())
         return
+    if obs_type == "state":
+        assert obs.dtype == np.float32 and obs.shape == (len(env.unwrapped.observation_names),)
+        assert np.isfinite(obs).all()
+        return
     pixels = obs if obs_type == "pixels" else obs["pixels"]
     if obs_type == "pixels_agent_pos":
         assert list(obs) == ["pixels", "agent_pos"] and np.isfinite(obs["agent_pos"]).all()

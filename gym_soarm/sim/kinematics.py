@@ -211,6 +211,7 @@ class ArmKinematics:
         position_tolerance: float = POSITION_TOLERANCE_M,
         pitch_tolerance: float = ROTATION_TOLERANCE_RAD,
         max_iterations: int | None = None,
+        pitch_weight: float = _PITCH_WEIGHT_M_PER_RAD,
     ) -> tuple[np.ndarray, float, float]:
         """Joint angles putting the jaws in ``pose``, or as near as the joint limits allow.
 
@@ -235,6 +236,11 @@ class ArmKinematics:
             position_tolerance: stop within this distance (m) of the position...
             pitch_tolerance: ... and this angle (rad) of the pitch.
             max_iterations: iteration limit (default: the one given at construction).
+            pitch_weight: the joints kept are those of the least position error (m) plus
+                this much per radian of pitch error (m/rad). The default, 0.01, gives up
+                1 cm of position for 1 rad of pitch; a tiny weight puts the position
+                first: the pitch yields wherever the commanded one and the position
+                cannot both be reached (what ``ee_delta`` asks for).
 
         Returns:
             The five joint angles (within their limits), the remaining position error
@@ -274,7 +280,7 @@ class ArmKinematics:
                     best_position - position_error < position_tolerance
                     and best_pitch - pitch_error < pitch_tolerance
                 )
-            score = position_error + _PITCH_WEIGHT_M_PER_RAD * pitch_error
+            score = position_error + pitch_weight * pitch_error
             if score < best_score:
                 best_q, best_position, best_pitch, best_score = q, position_error, dpitch, score
             if done or iteration == iterations:
@@ -288,8 +294,10 @@ class ArmKinematics:
             dp = (dx, dy, dz)
             step = self._pose_step(jac, pitch_row, dp, dpitch)
             moved = [q[j] for j in free]
+            # A joint that this step would push past its limit is held there, and the
+            # others take over its share (the pitch yields before the position does).
             blocked = [
-                (v <= lo and d < 0.0) or (v >= hi and d > 0.0)
+                (v + d <= lo and d < 0.0) or (v + d >= hi and d > 0.0)
                 for v, d, lo, hi in zip(moved, step, free_lower, free_upper, strict=True)
             ]
             if True in blocked:

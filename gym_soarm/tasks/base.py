@@ -140,6 +140,9 @@ class Task:
     option_keys: ClassVar[tuple[str, ...]] = ()
     placements: ClassVar[tuple[str, ...]] = ("uniform",)
     """The ``object_placement`` values the task supports: ``"grid"`` and/or ``"uniform"``."""
+    goal_pairs: ClassVar[tuple[tuple[str, str], ...]] = ()
+    """(object, goal) position fields of :attr:`state_fields`: ``obs_type="state"`` adds
+    the vector from each object to its goal (``("cube_pos", "goal_pos")``)."""
 
     def __init__(self, spec: TaskSpec) -> None:
         self.spec = spec

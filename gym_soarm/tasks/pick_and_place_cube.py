@@ -59,6 +59,7 @@ class PickAndPlaceTask(CubeGridTask):
 
     weights = RewardWeights({"reach": 0.1, "grasp": 0.2, "lift": 0.3, "place": 0.4})
     state_fields: ClassVar = (*CUBE_STATE_FIELDS, position_field("goal_pos", "goal"))
+    goal_pairs: ClassVar = (("cube_pos", "goal_pos"),)
 
     def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
         position, quaternion = physics.object_pose(self.cube)

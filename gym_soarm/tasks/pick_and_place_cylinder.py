@@ -145,6 +145,7 @@ class PickAndPlaceCylinderTask(Task):
         position_field("gripper_pos", "gripper"),
         position_field("pad_pos", "pad"),
     )
+    goal_pairs: ClassVar = (("cylinder_pos", "pad_pos"),)
     cylinder = CYLINDER.name
 
     def __init__(self, spec: TaskSpec) -> None:

@@ -117,6 +117,7 @@ class PlaceInBinTask(Task):
         position_field("gripper_pos", "gripper"),
         position_field("bin_pos", "bin"),
     )
+    goal_pairs: ClassVar = (("cube_pos", "bin_pos"),)
     cube = CUBE.name
 
     def initialize_episode(

@@ -132,6 +132,7 @@ class PushTask(Task):
 
     weights = RewardWeights({"reach": 0.3, "push": 0.7})
     state_fields: ClassVar = (*CUBE_STATE_FIELDS, position_field("target_pos", "target"))
+    goal_pairs: ClassVar = (("cube_pos", "target_pos"),)
     cube = CUBE.name
 
     def __init__(self, spec: TaskSpec) -> None:

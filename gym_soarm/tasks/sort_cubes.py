@@ -150,6 +150,7 @@ class SortCubesTask(Task):
         *(position_field(f"{colour}_pad_pos", f"{colour}_pad") for colour in COLOURS),
         position_field("gripper_pos", "gripper"),
     )
+    goal_pairs: ClassVar = tuple((f"{c}_cube_pos", f"{c}_pad_pos") for c in COLOURS)
 
     def initialize_episode(
         self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]

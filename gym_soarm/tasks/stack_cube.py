@@ -96,6 +96,7 @@ class StackCubeTask(Task):
         quaternion_field("blue_cube_quat_wxyz", "blue_cube"),
         position_field("gripper_pos", "gripper"),
     )
+    goal_pairs: ClassVar = (("red_cube_pos", "blue_cube_pos"),)
     top = RED_CUBE.name
     bottom = BLUE_CUBE.name
 

@@ -1,0 +1,82 @@
+"""``python -m gym_soarm.evaluate`` (``gym-soarm-evaluate``): a policy's success on the protocol.
+
+``--policy DIR`` (a ``python -m gym_soarm.train`` folder) or ``--policy expert`` (with
+``--task``): episode ``k`` resets with seed ``--first-seed + k`` (default 1000, as
+``lerobot-eval`` runs it). Prints the success rate; ``--json PATH`` writes
+``success_rate`` (a fraction), ``episodes``, the seeds and each episode's success.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+from gym_soarm.tasks import get_task, task_names
+from gym_soarm.tasks.suites import EVAL_SEED
+
+
+def _positive(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an int >= 1; got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an int >= 1; got {value}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m gym_soarm.evaluate",
+        description="Score a trained policy (a python -m gym_soarm.train folder) or the "
+        f"scripted expert on the benchmark's protocol: seeds {EVAL_SEED} + k.",
+    )
+    parser.add_argument(
+        "--policy", required=True, help="a python -m gym_soarm.train --out folder, or 'expert'"
+    )
+    parser.add_argument(
+        "--task",
+        default=None,
+        help=f"the task ({', '.join(task_names())}); required with --policy expert, "
+        "else the policy's own (another is refused)",
+    )
+    parser.add_argument("--episodes", type=_positive, default=50, help="episodes (default 50)")
+    parser.add_argument(
+        "--first-seed", type=int, default=EVAL_SEED, help=f"seed of episode 0 (default {EVAL_SEED})"
+    )
+    parser.add_argument("--json", default=None, metavar="PATH", help="write the result as JSON")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    from gym_soarm.rl.evaluation import TrainedPolicy, score
+
+    try:
+        if args.json is not None and Path(args.json).is_dir():
+            raise ValueError(f"--json must be a file path; {args.json!r} is a folder.")
+        if args.policy == "expert":
+            if args.task is None:
+                raise ValueError("--policy expert needs --task, e.g. --task ReachTarget-v0.")
+            task = get_task(args.task).name
+            env_kwargs = {"obs_type": "state"}
+            policy = None
+        else:
+            trained = TrainedPolicy(args.policy, args.task)
+            task, env_kwargs, policy = trained.task, trained.settings["env"], trained
+        result = score(task, env_kwargs, policy, args.episodes, args.first_seed)
+    except (ValueError, ImportError) as exc:
+        raise SystemExit(f"python -m gym_soarm.evaluate: error: {exc}") from None
+    result["policy"] = args.policy
+    print(
+        f"{task}: success {100 * result['success_rate']:.0f} % over {result['episodes']} "
+        f"episodes (seeds {result['seeds'][0]}-{result['seeds'][-1]}), mean return "
+        f"{result['mean_return']:.2f}"
+    )
+    if args.json is not None:
+        path = Path(args.json)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(result, indent=2) + "\n")
+    return 0

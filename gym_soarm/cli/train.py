@@ -1,0 +1,124 @@
+"""``python -m gym_soarm.train`` (``gym-soarm-train``): train a state policy with
+Stable-Baselines3.
+
+``--algo ppo|sac --task T --seed S [--steps N] --out DIR``: the package's recipe for the
+algorithm and task (:mod:`gym_soarm.rl.hyperparams`), checkpoints, ``curve.csv`` and
+``curve.png`` in ``DIR`` (:func:`gym_soarm.rl.training.train`). Ctrl-C stops the run
+and keeps its last checkpoint and curve.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import logging
+from collections.abc import Sequence
+from typing import Any
+
+from gym_soarm.rl.hyperparams import ALGORITHMS
+from gym_soarm.tasks import task_names
+
+
+def _positive(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an int >= 1; got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an int >= 1; got {value}")
+    return value
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an int >= 0; got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an int >= 0; got {value}")
+    return value
+
+
+def _hyperparam(text: str) -> tuple[str, Any]:
+    key, sep, value = text.partition("=")
+    if not sep or not key.isidentifier():
+        raise argparse.ArgumentTypeError(
+            f"expected KEY=VALUE (e.g. learning_rate=1e-4); got {text!r}"
+        )
+    try:
+        return key, ast.literal_eval(value)
+    except (ValueError, SyntaxError):
+        raise argparse.ArgumentTypeError(
+            f"the value of {key} must be a Python literal (a number, string, list ...); got {value!r}"
+        ) from None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m gym_soarm.train",
+        description="Train PPO or SAC on a task's state observations with the package's "
+        "recipe; writes model.zip, settings.json, curve.csv and curve.png to --out.",
+    )
+    parser.add_argument("--algo", required=True, choices=ALGORITHMS, help="the algorithm")
+    parser.add_argument(
+        "--task", required=True, help=f"the task: {', '.join(task_names())} (or an alias)"
+    )
+    parser.add_argument("--seed", type=_seed, default=0, help="training seed (default 0)")
+    parser.add_argument(
+        "--steps", type=_positive, default=None, help="environment steps (default: the recipe's)"
+    )
+    parser.add_argument("--out", required=True, help="output folder")
+    parser.add_argument(
+        "--eval-every",
+        type=_positive,
+        default=None,
+        help="environment steps between evaluations on the protocol (default: the recipe's)",
+    )
+    parser.add_argument(
+        "--eval-episodes",
+        type=_positive,
+        default=None,
+        help="protocol episodes per evaluation (default: the recipe's)",
+    )
+    parser.add_argument(
+        "--hyperparams",
+        nargs="+",
+        type=_hyperparam,
+        default=[],
+        metavar="KEY=VALUE",
+        help="replace recipe arguments of the algorithm, e.g. learning_rate=1e-4 "
+        "learning_starts=100 (Python literals)",
+    )
+    parser.add_argument(
+        "--no-progress", action="store_true", help="no progress bar (e.g. in log files)"
+    )
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Train; 0 when the run finished, 130 when Ctrl-C stopped it (checkpoint kept)."""
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
+    from gym_soarm.rl.training import train
+
+    try:
+        result = train(
+            args.algo,
+            args.task,
+            args.out,
+            seed=args.seed,
+            steps=args.steps,
+            eval_every=args.eval_every,
+            eval_episodes=args.eval_episodes,
+            progress_bar=not args.no_progress,
+            hyperparams=dict(args.hyperparams),
+        )
+    except (ValueError, ImportError) as exc:
+        raise SystemExit(f"python -m gym_soarm.train: error: {exc}") from None
+    rate = "n/a" if result.success_rate is None else f"{100 * result.success_rate:.0f} %"
+    state = "interrupted" if result.interrupted else "done"
+    print(
+        f"{state}: {result.env_steps} steps in {result.wall_s:.0f} s; success on the "
+        f"protocol {rate}; checkpoint and curve in {result.out}"
+    )
+    return 130 if result.interrupted else 0

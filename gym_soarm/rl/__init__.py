@@ -1,0 +1,10 @@
+"""Reinforcement learning on gym-soarm with Stable-Baselines3 (the ``gym-soarm[rl]`` extra).
+
+* :mod:`gym_soarm.rl.hyperparams`: the settings of every (algorithm, task) recipe.
+* :mod:`gym_soarm.rl.training`: :func:`~gym_soarm.rl.training.train`, checkpoints and
+  learning curves (``python -m gym_soarm.train``).
+* :mod:`gym_soarm.rl.evaluation`: a trained policy (or the scripted expert) scored on
+  the benchmark's protocol (``python -m gym_soarm.evaluate``).
+
+Importing this package needs no Stable-Baselines3; training and loading a policy do.
+"""

@@ -1,0 +1,344 @@
+"""Train a state policy with Stable-Baselines3: checkpoints and a learning curve on disk.
+
+:func:`train` runs one recipe of :mod:`gym_soarm.rl.hyperparams` (PPO or SAC on one
+task, one seed) and writes into its output folder:
+
+* ``model.zip``: the latest checkpoint (SB3's own format), saved at every evaluation,
+  at the end and when the run is interrupted (Ctrl-C);
+* ``vecnormalize.pkl``: the observation statistics, for recipes that normalise;
+* ``settings.json``: what the policy needs to act again (format ``gym_soarm.policy/1``:
+  algorithm, task, seed, ``gym.make`` keywords, the observation's names) and the recipe;
+* ``curve.csv``: one row per evaluation: ``env_steps``, ``wall_s``, ``success_rate``
+  (on the protocol: seeds 1000 + k), ``mean_return``, ``episodes``;
+* ``curve.png``: the success rate against environment steps and wall time.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import logging
+import os
+import pickle
+import signal
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gym_soarm import __version__
+from gym_soarm.rl.evaluation import (
+    MODEL_FILE,
+    NORMALIZE_FILE,
+    POLICY_FORMAT,
+    SETTINGS_FILE,
+    make_env,
+    require_sb3,
+    score,
+)
+from gym_soarm.rl.hyperparams import ALGORITHMS, recipe
+from gym_soarm.tasks import get_task
+from gym_soarm.tasks.suites import EVAL_SEED
+from gym_soarm.validation import ArgumentTypeError
+
+logger = logging.getLogger(__name__)
+
+CURVE_CSV = "curve.csv"
+CURVE_PNG = "curve.png"
+CURVE_FIELDS = ("env_steps", "wall_s", "success_rate", "mean_return", "episodes")
+
+
+@dataclasses.dataclass
+class TrainResult:
+    """What a run did: its folder, steps, wall time, last success rate and whether Ctrl-C
+    stopped it."""
+
+    out: Path
+    env_steps: int
+    wall_s: float
+    success_rate: float | None
+    interrupted: bool
+
+
+def _check_positive(name: str, value: Any) -> int | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ArgumentTypeError(
+            f"{name} must be an int >= 1; got {value!r} ({type(value).__name__})."
+        )
+    if value < 1:
+        raise ValueError(f"{name} must be an int >= 1; got {value!r}. Pass e.g. {name}=10000.")
+    return int(value)
+
+
+def _pyplot() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _write_curve_png(rows: list[dict[str, float]], path: Path, title: str) -> None:
+    plt = _pyplot()
+
+    steps = [r["env_steps"] for r in rows]
+    rates = [100 * r["success_rate"] for r in rows]
+    minutes = [r["wall_s"] / 60 for r in rows]
+    fig, (left, right) = plt.subplots(1, 2, figsize=(9, 3.4))
+    left.plot(steps, rates, marker="o")
+    left.set_xlabel("environment steps")
+    right.plot(minutes, rates, marker="o")
+    right.set_xlabel("wall time (min)")
+    for axis in (left, right):
+        axis.set_ylabel("success on the protocol (%)")
+        axis.set_ylim(-3, 103)
+        axis.grid(alpha=0.3)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+class _Run:
+    """The bookkeeping of one run: evaluations, curve rows and checkpoints."""
+
+    def __init__(
+        self, out: Path, task: str, env_kwargs: dict, episodes: int, title: str, model: Any
+    ) -> None:
+        self.out = out
+        self.task = task
+        self.env_kwargs = env_kwargs
+        self.episodes = episodes
+        self.title = title
+        self.model = model
+        self.rows: list[dict[str, float]] = []
+        self.started = time.perf_counter()
+        self.eval_s = 0.0
+
+    def normalizer(self) -> Any:
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        env = self.model.get_env()
+        return env if isinstance(env, VecNormalize) else None
+
+    def save(self) -> None:
+        self.model.save(self.out / MODEL_FILE)
+        normalizer = self.normalizer()
+        if normalizer is not None:
+            # The statistics alone (the environments are not pickled).
+            venv, normalizer.venv = normalizer.venv, None
+            try:
+                with open(self.out / NORMALIZE_FILE, "wb") as stream:
+                    pickle.dump(normalizer, stream)
+            finally:
+                normalizer.venv = venv
+
+    def evaluate(self, env_steps: int) -> float:
+        wall = time.perf_counter() - self.started
+        normalizer = self.normalizer()
+        model = self.model
+
+        def act(obs: np.ndarray, info: dict) -> np.ndarray:
+            if normalizer is not None:
+                obs = normalizer.normalize_obs(obs)
+            return model.predict(obs, deterministic=True)[0]
+
+        began = time.perf_counter()
+        result = score(self.task, self.env_kwargs, act, self.episodes, EVAL_SEED)
+        self.eval_s += time.perf_counter() - began
+        self.rows.append(
+            {
+                "env_steps": env_steps,
+                "wall_s": round(wall, 2),
+                "success_rate": result["success_rate"],
+                "mean_return": round(result["mean_return"], 4),
+                "episodes": self.episodes,
+            }
+        )
+        self.write_curve()
+        self.save()
+        logger.info(
+            "%s: %d steps, %.0f s, success %.0f %%",
+            self.title,
+            env_steps,
+            wall,
+            100 * result["success_rate"],
+        )
+        return result["success_rate"]
+
+    def write_curve(self) -> None:
+        with open(self.out / CURVE_CSV, "w", newline="") as stream:
+            writer = csv.DictWriter(stream, fieldnames=CURVE_FIELDS)
+            writer.writeheader()
+            writer.writerows(self.rows)
+        if self.rows:
+            _write_curve_png(self.rows, self.out / CURVE_PNG, self.title)
+
+
+def train(
+    algo: str,
+    task: str,
+    out: str | os.PathLike[str],
+    seed: int = 0,
+    steps: int | None = None,
+    eval_every: int | None = None,
+    eval_episodes: int | None = None,
+    progress_bar: bool = False,
+    hyperparams: dict[str, Any] | None = None,
+) -> TrainResult:
+    """Train ``algo`` on ``task`` with the package's recipe and write its folder.
+
+    Every argument is checked before anything is built or written. The wall time on the
+    curve counts training and evaluation alike.
+
+    Args:
+        algo: ``"ppo"`` or ``"sac"``.
+        task: a registered task (its name, alias or id).
+        out: the output folder (created; files of an earlier run there are replaced).
+        seed: the training seed (the algorithm's and the environments' resets).
+        steps: environment steps (default: the recipe's).
+        eval_every: environment steps between evaluations (default: the recipe's).
+        eval_episodes: protocol episodes per evaluation (default: the recipe's).
+        progress_bar: show SB3's progress bar (needs ``rich``/``tqdm``).
+        hyperparams: values that replace the recipe's algorithm arguments
+            (``{"learning_starts": 100}``); only keys the recipe has.
+
+    Raises:
+        ValueError: unknown algorithm or task, a non-positive count, ``out`` a file.
+        ImportError: Stable-Baselines3 is not installed (names the extra).
+    """
+    if algo not in ALGORITHMS:
+        raise ValueError(
+            f"algo must be one of {', '.join(ALGORITHMS)}; got {algo!r}. Pass e.g. --algo ppo."
+        )
+    spec = get_task(task)  # ValueError naming the registered tasks
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an int >= 0; got {seed!r}.")
+    settings = recipe(algo, spec.name)
+    steps = _check_positive("steps", steps) or settings["steps"]
+    eval_every = _check_positive("eval_every", eval_every) or settings["eval_every"]
+    episodes = _check_positive("eval_episodes", eval_episodes) or settings["eval_episodes"]
+    if hyperparams:
+        unknown = sorted(set(hyperparams) - set(settings["algo"]))
+        if unknown:
+            raise ValueError(
+                f"hyperparams {unknown} are not arguments of the {algo} recipe; valid: "
+                f"{', '.join(sorted(settings['algo']))}."
+            )
+        settings["algo"].update(hyperparams)
+    out_path = Path(out)
+    if out_path.exists() and not out_path.is_dir():
+        raise ValueError(f"out must be a folder; {str(out_path)!r} is a file. Pass a new folder.")
+    sb3 = require_sb3()
+    _pyplot()  # imported before training, never in the middle of it
+    import torch
+
+    # Small networks: one thread is as fast, and several threads slow down badly
+    # (spinning) whenever other processes share the cores.
+    torch.set_num_threads(settings["torch_threads"])
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+
+    env_kwargs = dict(settings["env"])
+    probe = make_env(spec.name, env_kwargs)
+    observation_names = list(probe.unwrapped.observation_names)
+    probe.close()
+
+    out_path.mkdir(parents=True, exist_ok=True)
+    for stale in (MODEL_FILE, NORMALIZE_FILE, CURVE_CSV, CURVE_PNG):
+        (out_path / stale).unlink(missing_ok=True)
+    (out_path / SETTINGS_FILE).write_text(
+        json.dumps(
+            {
+                "format": POLICY_FORMAT,
+                "algo": algo,
+                "task": spec.name,
+                "seed": int(seed),
+                "steps": steps,
+                "env": env_kwargs,
+                "observation_names": observation_names,
+                "recipe": settings,
+                "gym_soarm_version": __version__,
+            },
+            indent=2,
+        )
+        + "\n"
+    )
+
+    vec_class = SubprocVecEnv if settings["vec_env"] == "subproc" else DummyVecEnv
+    venv = make_vec_env(
+        lambda: make_env(spec.name, env_kwargs),
+        n_envs=settings["n_envs"],
+        seed=int(seed),
+        vec_env_cls=vec_class,
+    )
+    if settings["normalize"]:
+        venv = VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=settings["algo"]["gamma"])
+    algo_class = {"ppo": sb3.PPO, "sac": sb3.SAC}[algo]
+    model = algo_class("MlpPolicy", venv, seed=int(seed), device="cpu", **settings["algo"])
+    title = f"{algo.upper()} on {spec.name}, seed {seed}"
+    run = _Run(out_path, spec.name, env_kwargs, episodes, title, model)
+
+    class _StopOnInterrupt(BaseCallback):
+        """Ctrl-C (SIGINT) ends the run after the current step, cleanly: the callback
+        stops ``learn`` and the run keeps its checkpoint and curve."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.interrupted = False
+            self._previous: Any = None
+
+        def __enter__(self) -> _StopOnInterrupt:
+            if threading.current_thread() is threading.main_thread():
+                self._previous = signal.signal(signal.SIGINT, self._interrupt)
+            return self
+
+        def __exit__(self, *exc: object) -> None:
+            if self._previous is not None:
+                signal.signal(signal.SIGINT, self._previous)
+
+        def _interrupt(self, signum: int, frame: Any) -> None:
+            self.interrupted = True
+
+        def _on_step(self) -> bool:
+            return not self.interrupted
+
+    class _Evaluate(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.next_eval = eval_every
+            self.last_rate: float | None = None
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= self.next_eval:
+                self.next_eval += eval_every
+                self.last_rate = run.evaluate(self.num_timesteps)
+            return True
+
+    callback = _Evaluate()
+    stop = _StopOnInterrupt()
+    try:
+        with stop:
+            model.learn(total_timesteps=steps, callback=[callback, stop], progress_bar=progress_bar)
+        if stop.interrupted:
+            logger.warning("%s: interrupted; the checkpoint and the curve are kept", title)
+            run.save()
+            run.write_curve()
+        elif not run.rows or run.rows[-1]["env_steps"] != model.num_timesteps:
+            callback.last_rate = run.evaluate(model.num_timesteps)
+    finally:
+        venv.close()
+    return TrainResult(
+        out=out_path,
+        env_steps=int(model.num_timesteps),
+        wall_s=time.perf_counter() - run.started,
+        success_rate=callback.last_rate,
+        interrupted=stop.interrupted,
+    )

@@ -1,0 +1,121 @@
+"""``obs_type="state"``: one flat float32 vector with what a state policy needs.
+
+The layout, in order (every entry named by ``env.unwrapped.observation_names``):
+
+=======================  ====  ==========================================================
+names                    size  what
+=======================  ====  ==========================================================
+``<joint>.pos``          6     the measured joint angles (rad), gripper last
+``<joint>.vel``          6     the joint velocities (rad/s)
+``<joint>.target``       6     the commanded servo targets (rad): what delta actions move
+``jaw_x`` .. ``jaw_z``   3     the jaws' centre (the ``grasp_center`` site, world frame, m)
+task state               N     the task's ``environment_state`` (its ``state_names``)
+``jaw_to_<p>_x`` ..      3/p   from the jaws' centre to each position ``p`` of the task
+                               state (the gripper frame's own excepted), m
+``<a>_to_<b>_x`` ..      3/g   from each object to its goal (the task's
+                               :attr:`~gym_soarm.tasks.base.Task.goal_pairs`), m
+=======================  ====  ==========================================================
+
+Angles are radians whatever the env's ``units`` (those apply to actions and
+``agent_pos``). Positions are world coordinates in metres: x across the table, y away
+from the robot, z up. Nothing is rendered.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+
+from gym_soarm import constants
+from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.tasks.base import Task
+
+GRIPPER_FIELD = "gripper_pos"
+"""The gripper frame's position: already beside the jaws' centre, so no vector to it."""
+AXES = ("x", "y", "z")
+
+
+def _position_prefix(task: Task, field_name: str) -> tuple[str, int]:
+    """The value prefix (``"cube"``) of a position field and its offset in the task state."""
+    offset = 0
+    for field in task.state_fields:
+        if field.name == field_name:
+            if field.size != 3 or not field.names[0].endswith("_x"):
+                raise ValueError(
+                    f"{type(task).__name__}.goal_pairs names {field_name!r}, which is not a "
+                    "position field (x, y, z); name position fields only."
+                )
+            return field.names[0][:-2], offset
+        offset += field.size
+    known = [f.name for f in task.state_fields]
+    raise ValueError(
+        f"{type(task).__name__}.goal_pairs names {field_name!r}, which is not one of its "
+        f"state fields {known}; fix the pair."
+    )
+
+
+class StateObservation:
+    """Builds the flat state observation of one task.
+
+    Args:
+        task: the task's episode logic (its state fields and goal pairs).
+    """
+
+    def __init__(self, task: Task) -> None:
+        self._task = task
+        positions: list[tuple[str, int]] = []
+        offset = 0
+        for field in task.state_fields:
+            if field.size == 3 and field.names[0].endswith("_x") and field.name != GRIPPER_FIELD:
+                positions.append((field.names[0][:-2], offset))
+            offset += field.size
+        self._jaw_to = [start for _, start in positions]
+        self._pairs = [
+            (_position_prefix(task, a), _position_prefix(task, b)) for a, b in task.goal_pairs
+        ]
+        joints = constants.JOINT_NAMES
+        names: list[str] = [f"{j}.pos" for j in joints]
+        names += [f"{j}.vel" for j in joints]
+        names += [f"{j}.target" for j in joints]
+        names += [f"jaw_{a}" for a in AXES]
+        names += list(task.state_names)
+        names += [f"jaw_to_{prefix}_{a}" for prefix, _ in positions for a in AXES]
+        names += [f"{pa}_to_{pb}_{a}" for (pa, _), (pb, _) in self._pairs for a in AXES]
+        if len(set(names)) != len(names):
+            repeated = sorted({n for n in names if names.count(n) > 1})
+            raise ValueError(
+                f"the state observation of {type(task).__name__} repeats names {repeated}; "
+                "rename the task's state fields."
+            )
+        self.names: tuple[str, ...] = tuple(names)
+        n_joints = len(joints)
+        self._size = len(names)
+        self._task_slice = slice(3 * n_joints + 3, 3 * n_joints + 3 + len(task.state_names))
+
+    @property
+    def space(self) -> spaces.Box:
+        """``Box(float32, (N,))``: joint angles within +-pi, the task state within its
+        bounds, velocities and vectors unbounded."""
+        n = len(constants.JOINT_NAMES)
+        high = np.full(self._size, np.inf, dtype=np.float32)
+        high[:n] = np.pi
+        high[2 * n : 3 * n] = np.pi
+        high[3 * n : 3 * n + 3] = constants.POSITION_BOUND_M
+        _, task_high = self._task.state_bounds()
+        high[self._task_slice] = task_high
+        return spaces.Box(-high, high, dtype=np.float32)
+
+    def __call__(self, physics: SoArmPhysics, commanded_rad: np.ndarray) -> np.ndarray:
+        """The observation of the current state (a new float32 array)."""
+        jaw = physics.grasp_center()
+        state = self._task.environment_state(physics)
+        parts = [
+            physics.joint_angles(),
+            physics.joint_velocities(),
+            commanded_rad,
+            jaw,
+            state,
+        ]
+        parts += [state[start : start + 3] - jaw for start in self._jaw_to]
+        parts += [state[b : b + 3] - state[a : a + 3] for (_, a), (_, b) in self._pairs]
+        return np.concatenate(parts).astype(np.float32)
