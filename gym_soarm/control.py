@@ -68,6 +68,18 @@ servos); they appear in the ee modes only, 0 at reset.
 
 :meth:`ControlMode.action_for_targets` turns six servo targets in radians (what the
 scripted expert computes) into this mode's action: the expert answers in every mode.
+
+**Straight lines in ee_delta.** ``ee_delta`` keeps the commanded pitch while the joints
+allow it; where the pitch and the new position cannot both be reached (a joint pinned at
+its limit: from the home pose, jaws level, the low and near targets fold the elbow and
+the wrist to their limits), the position comes first: the pitch yields by the smallest of
+:data:`PITCH_YIELD_RAD` that reaches it, from the current targets or from targets eased
+towards the middle of their ranges (:data:`RELAX_SHARES`), and ``ik_error_rad`` tells how
+far the pitch and roll then are from the commanded ones.
+
+**Normalised actions.** ``normalize_actions=True`` wraps any mode in
+:class:`NormalizedControl`: the action becomes ``Box(-1, 1, (6,), float32)``, mapped
+linearly onto the mode's own Box (-1 its low bound, +1 its high bound).
 """
 
 from __future__ import annotations

@@ -57,7 +57,7 @@ HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "policy_kwargs": {"net_arch": [128, 128]},
             },
         },
-        "ReachTarget-v0": {"steps": 1_500_000, "eval_every": 100_000},
+        "ReachTarget-v0": {"steps": 600_000, "eval_every": 50_000},
     },
     "sac": {
         "default": {
@@ -72,16 +72,16 @@ HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
             "algo": {
                 "learning_rate": 1e-3,
                 "buffer_size": 300_000,
-                "learning_starts": 5_000,
-                "batch_size": 256,
+                "learning_starts": 2_000,
+                "batch_size": 128,
                 "gamma": 0.98,
                 "tau": 0.02,
                 "train_freq": 1,
                 "gradient_steps": 1,
-                "policy_kwargs": {"net_arch": [256, 256]},
+                "policy_kwargs": {"net_arch": [128, 128]},
             },
         },
-        "ReachTarget-v0": {"steps": 150_000, "eval_every": 10_000},
+        "ReachTarget-v0": {"steps": 100_000, "eval_every": 10_000},
     },
 }
 
