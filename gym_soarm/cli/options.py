@@ -50,6 +50,17 @@ def add_dataset_action_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_dynamics_argument(parser: argparse.ArgumentParser) -> None:
+    """Add ``--dynamics``: a fitted arm's servo and joint figures (gym_soarm.dynamics)."""
+    parser.add_argument(
+        "--dynamics",
+        default=None,
+        metavar="PATH",
+        help="a gym_soarm.dynamics/1 JSON file (python -m gym_soarm.sysid fits one to a real "
+        "arm's dataset): the simulated servos and joints move with its figures",
+    )
+
+
 def camera_config_argument(text: str) -> str | list[str]:
     """``--camera-config`` as the recorder takes it: a config name (``front_wrist``,
     ``none`` ...) as is, camera names (``front_camera,wrist_camera``) as a list."""

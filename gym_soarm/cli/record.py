@@ -13,6 +13,7 @@ from pathlib import Path
 
 from gym_soarm.cli.options import (
     add_dataset_action_arguments,
+    add_dynamics_argument,
     camera_config_argument,
     task_selection,
 )
@@ -64,6 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--size", default="480x640", help="image HEIGHTxWIDTH (default 480x640)")
     add_dataset_action_arguments(parser)
+    add_dynamics_argument(parser)
     parser.add_argument(
         "--keep",
         choices=KEEP_CHOICES,
@@ -147,6 +149,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             },
             control_mode=args.control_mode,
             calibration=args.calibration,
+            dynamics=args.dynamics,
         )
     except (ValueError, TypeError, FileExistsError, ImportError) as exc:
         parser.error(str(exc))

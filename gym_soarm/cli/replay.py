@@ -12,6 +12,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from gym_soarm.cli.options import add_dynamics_argument
 from gym_soarm.data.replay import REPLAY_TASK, plot_replay, replay
 from gym_soarm.tasks import task_names, task_spellings
 from gym_soarm.units import UNITS
@@ -68,6 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=0,
         help="episode K resets the scene with SEED + K, as the recorder did (default 0)",
     )
+    add_dynamics_argument(parser)
     parser.add_argument("--json", default=None, metavar="PATH", help="write the figures as JSON")
     parser.add_argument(
         "--plot", default=None, metavar="PATH.png", help="draw recorded vs simulated joints"
@@ -93,6 +95,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             wrist_roll_offset_deg=args.wrist_roll_offset_deg,
             task=args.task,
             seed=args.seed,
+            dynamics=args.dynamics,
         )
     except (ValueError, TypeError, ImportError) as exc:
         parser.error(str(exc))

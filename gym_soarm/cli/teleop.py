@@ -17,6 +17,7 @@ import gymnasium as gym
 from gym_soarm import constants
 from gym_soarm.cli.options import (
     add_dataset_action_arguments,
+    add_dynamics_argument,
     camera_config_argument,
 )
 from gym_soarm.data import LeRobotDatasetWriter
@@ -99,6 +100,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--size", default=DEFAULT_SIZE, help=f"image HEIGHTxWIDTH (default {DEFAULT_SIZE})"
     )
     add_dataset_action_arguments(parser)
+    add_dynamics_argument(parser)
     parser.add_argument(
         "--keep",
         choices=KEEP_CHOICES,
@@ -188,6 +190,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "units": args.units,
         "wrist_roll_offset_deg": args.wrist_roll_offset_deg,
         "calibration": args.calibration,
+        "dynamics": args.dynamics,
         "control_mode": args.control_mode,
         "render_quality": args.quality,
         "observation_height": height,
@@ -217,7 +220,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             except (ValueError, FileExistsError, ImportError) as exc:
                 parser.error(str(exc))
             write_recording_settings(
-                root, args.units, args.wrist_roll_offset_deg, args.calibration, args.control_mode
+                root,
+                args.units,
+                args.wrist_roll_offset_deg,
+                args.calibration,
+                args.control_mode,
+                args.dynamics,
             )
             print(f"recording into {root}", flush=True)
         session = TeleopSession(

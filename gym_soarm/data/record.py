@@ -169,14 +169,17 @@ def write_recording_settings(
     wrist_roll_offset_deg: float,
     calibration: str | os.PathLike[str] | None,
     control_mode: str,
+    dynamics: str | os.PathLike[str] | None = None,
 ) -> None:
     """Write ``meta/gym_soarm.json``: how to read the dataset's joint values back
-    (:func:`gym_soarm.data.replay.replay` reads it)."""
+    (:func:`gym_soarm.data.replay.replay` reads it), and the dynamics file the arm
+    moved with."""
     settings = {
         "units": units,
         "wrist_roll_offset_deg": float(wrist_roll_offset_deg),
         "calibration": None if calibration is None else os.path.abspath(calibration),
         "control_mode": control_mode,
+        "dynamics": None if dynamics is None else os.path.abspath(dynamics),
     }
     path = Path(root) / SETTINGS_PATH
     path.write_text(json.dumps(settings, indent=2) + "\n", encoding="utf-8")
@@ -202,6 +205,7 @@ def record(
     variation: Mapping[str, Any] | None = None,
     control_mode: str = "joint_pos",
     calibration: str | os.PathLike[str] | None = None,
+    dynamics: str | os.PathLike[str] | None = None,
 ) -> RecordSummary:
     """Record ``episodes`` episodes of the scripted expert into a dataset folder.
 
@@ -254,6 +258,8 @@ def record(
         calibration: with LeRobot units, a real SO-101 follower's LeRobot calibration
             JSON: states and actions are then that arm's values (see
             :mod:`gym_soarm.calibration`).
+        dynamics: a ``gym_soarm.dynamics/1`` file (servo gains, joint figures, control
+            delay; see :mod:`gym_soarm.dynamics`) the simulated arm moves with.
 
     Raises:
         ValueError: a bad argument; nothing is written then.
@@ -300,6 +306,8 @@ def record(
     }
     if calibration is not None:
         common_kwargs["calibration"] = os.fspath(calibration)
+    if dynamics is not None:
+        common_kwargs["dynamics"] = os.fspath(dynamics)
     if state_only:
         common_kwargs["obs_type"] = "environment_state_agent_pos"
     else:
@@ -342,7 +350,9 @@ def record(
     writer = LeRobotDatasetWriter.create(
         root, FPS, features, robot_type=robot_type, overwrite=overwrite
     )
-    write_recording_settings(root, units, wrist_roll_offset_deg, calibration, control_mode)
+    write_recording_settings(
+        root, units, wrist_roll_offset_deg, calibration, control_mode, dynamics
+    )
     attempts = successes = 0
     interrupted = False
     bar = None

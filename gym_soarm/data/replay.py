@@ -53,6 +53,7 @@ import numpy as np
 from gym_soarm import constants
 from gym_soarm.data.attempt import VARIATION_PATH
 from gym_soarm.data.record import SETTINGS_PATH, robot_type_for
+from gym_soarm.dynamics import load_dynamics
 from gym_soarm.tasks import get_task, reach_target
 from gym_soarm.units import FEATURE_NAMES, RADIANS, UNITS, joint_units
 from gym_soarm.validation import check_choice, check_int
@@ -324,6 +325,69 @@ class ReplayReport:
         return "\n".join(lines)
 
 
+def resolve_units(
+    dataset: ReplayDataset,
+    units: str | None = None,
+    calibration: str | os.PathLike[str] | None = None,
+    wrist_roll_offset_deg: float | None = None,
+) -> tuple[str, float, str | os.PathLike[str] | None]:
+    """The units, wrist offset and calibration file to read ``dataset``'s joints with.
+
+    Arguments given win; None takes a gym_soarm recording's own settings, else the
+    units detected from ``robot_type``, no offset and no calibration. All three are
+    checked (the calibration file is read).
+
+    Raises:
+        ValueError: a bad unit name, offset or calibration file.
+    """
+    settings = dataset.settings or {}
+    from_settings = units is None and bool(settings)
+    chosen_units = units or dataset.units
+    if wrist_roll_offset_deg is None:
+        wrist_roll_offset_deg = settings.get("wrist_roll_offset_deg", 0.0) if from_settings else 0.0
+    if calibration is None and from_settings:
+        calibration = settings.get("calibration")
+    joint_units(chosen_units, wrist_roll_offset_deg, calibration)  # checks them all first
+    return chosen_units, wrist_roll_offset_deg, calibration
+
+
+def episode_scenes(
+    dataset: ReplayDataset, task: str | None = None, seed: int = 0
+) -> dict[int, tuple[str, int]]:
+    """Episode index -> (task, reset seed) of the scene it is replayed in.
+
+    The episode's recorded task and seed where the dataset lists them and ``task`` is
+    None; else ``task`` (default :data:`REPLAY_TASK`) reset with ``seed + index``.
+    """
+    scenes: dict[int, tuple[str, int]] = {}
+    for index in dataset.episodes:
+        origin = (dataset.origins or {}).get(index)
+        if task is None and origin is not None:
+            scenes[index] = (get_task(origin[0]).name, origin[1])
+        else:
+            scenes[index] = (task or REPLAY_TASK, seed + index)
+    return scenes
+
+
+def start_episode(env: Any, state: np.ndarray, seed: int) -> None:
+    """Reset ``env`` (the unwrapped environment) with ``seed`` and place the arm at a
+    recorded ``observation.state`` (dataset units), its servo targets there too."""
+    env.reset(seed=seed)
+    physics = env.physics
+    start = env.joint_units.to_radians(state)
+    low, high = physics.control_range()
+    start = np.clip(start, low, high)
+    physics.set_joint_angles(start)
+    env.hold_servo_targets(start)
+    physics.forward()
+
+
+def frame_of_steps(steps: int, frames: int, fps: float) -> np.ndarray:
+    """For each of ``steps`` 50 Hz steps, the frame whose action is in force at its start."""
+    k = np.arange(steps)
+    return np.minimum((k * fps // SIM_FPS).astype(int), frames - 2)
+
+
 def replay(
     root: str | os.PathLike[str],
     episodes: Sequence[int] | None = None,
@@ -332,6 +396,7 @@ def replay(
     wrist_roll_offset_deg: float | None = None,
     task: str | None = None,
     seed: int = 0,
+    dynamics: str | os.PathLike[str] | None = None,
 ) -> ReplayReport:
     """Drive the simulation with a dataset's actions; compare with its recorded states.
 
@@ -348,6 +413,8 @@ def replay(
             episode's recorded task where the dataset lists it, else :data:`REPLAY_TASK`.
         seed: with ``task`` (or a dataset that lists no origins), episode ``k`` resets the
             scene with ``seed + k``.
+        dynamics: a ``gym_soarm.dynamics/1`` file (servo gains, joint figures, control
+            delay; see :mod:`gym_soarm.dynamics`) to replay with; None for the model's own.
 
     Raises:
         ValueError: a bad argument or dataset (nothing is simulated then).
@@ -361,22 +428,13 @@ def replay(
     seed = check_int("seed", seed, 0)
     if episodes is not None:
         episodes = [check_int("episode", e, 0) for e in episodes]
+    if dynamics is not None:
+        load_dynamics(dynamics)  # checks the file first
     dataset = read_replay_dataset(root, episodes)
-    settings = dataset.settings or {}
-    from_settings = units is None and bool(settings)
-    chosen_units = units or dataset.units
-    if wrist_roll_offset_deg is None:
-        wrist_roll_offset_deg = settings.get("wrist_roll_offset_deg", 0.0) if from_settings else 0.0
-    if calibration is None and from_settings:
-        calibration = settings.get("calibration")
-    joint_units(chosen_units, wrist_roll_offset_deg, calibration)  # checks them all first
-    scenes: dict[int, tuple[str, int]] = {}
-    for index in dataset.episodes:
-        origin = (dataset.origins or {}).get(index)
-        if task is None and origin is not None:
-            scenes[index] = (get_task(origin[0]).name, origin[1])
-        else:
-            scenes[index] = (task or REPLAY_TASK, seed + index)
+    chosen_units, wrist_roll_offset_deg, calibration = resolve_units(
+        dataset, units, calibration, wrist_roll_offset_deg
+    )
+    scenes = episode_scenes(dataset, task, seed)
     envs: dict[str, Any] = {}
     try:
         replays = []
@@ -389,6 +447,7 @@ def replay(
                     units=chosen_units,
                     wrist_roll_offset_deg=wrist_roll_offset_deg,
                     calibration=calibration,
+                    dynamics=dynamics,
                 )
             env = envs[name].unwrapped
             replays.append(_replay_episode(env, index, actions, states, dataset.fps, episode_seed))
@@ -410,20 +469,13 @@ def _replay_episode(
             f"episode {index} has {frames} frame(s); a replay compares the frames after the "
             "first, so it needs at least 2. Leave that episode out."
         )
-    env.reset(seed=seed)
+    start_episode(env, states[0], seed)
     physics = env.physics
-    start = env.joint_units.to_radians(states[0])
-    low, high = physics.control_range()
-    start = np.clip(start, low, high)
-    physics.set_joint_angles(start)
-    physics.set_joint_targets(start)
-    physics.forward()
     # Steps at 50 Hz until the last frame's time; each sends the frame in force then.
     steps = math.ceil((frames - 1) * SIM_FPS / fps - 1e-9)
     positions = np.empty((steps + 1, len(FEATURE_NAMES)))
     positions[0] = env.joint_units.from_radians(physics.joint_angles())
-    for k in range(steps):
-        frame = min(int(k * fps // SIM_FPS), frames - 2)
+    for k, frame in enumerate(frame_of_steps(steps, frames, fps)):
         obs, *_ = env.step(actions[frame].astype(np.float32))
         positions[k + 1] = obs["agent_pos"]
     times = np.arange(1, frames) / fps

@@ -13,6 +13,7 @@ from lerobot.envs.configs import EnvConfig
 import gym_soarm  # noqa: F401  (registers gym_soarm/<task> wherever this config is unpickled)
 from gym_soarm import constants
 from gym_soarm.control import CONTROL_MODES
+from gym_soarm.dynamics import load_dynamics
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
 from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.distractors import MAX_DISTRACTORS
@@ -116,6 +117,9 @@ class SoArmEnvConfig(EnvConfig):
         calibration: with LeRobot units, the path of a real SO-101 follower's
             calibration JSON, so the env speaks that arm's values (see
             :mod:`gym_soarm.calibration`); None for the fixed maps.
+        dynamics: the path of a ``gym_soarm.dynamics/1`` file (servo gains, joint
+            figures and control delay fitted to a real arm by ``python -m
+            gym_soarm.sysid``, see :mod:`gym_soarm.dynamics`); None for the model's own.
 
     A suite's own settings (``soarm_robust``'s randomisation) override the fields above
     for its tasks.
@@ -140,6 +144,7 @@ class SoArmEnvConfig(EnvConfig):
     control_mode: str = "joint_pos"
     vector_env: str = "auto"
     calibration: str | None = None
+    dynamics: str | None = None
     features: dict[str, PolicyFeature] = field(default_factory=dict)
     features_map: dict[str, str] = field(default_factory=dict)
 
@@ -172,6 +177,8 @@ class SoArmEnvConfig(EnvConfig):
         check_choice("vector_env", self.vector_env, VECTOR_ENVS)
         if self.calibration is not None:  # reads and checks the file
             joint_units(self.units, self.wrist_roll_offset_deg, self.calibration)
+        if self.dynamics is not None:  # reads and checks the file
+            load_dynamics(self.dynamics)
         cameras = parse_cameras(self.camera_config)
         n_joints = len(constants.JOINT_NAMES)
         features: dict[str, PolicyFeature] = {
@@ -223,6 +230,8 @@ class SoArmEnvConfig(EnvConfig):
             kwargs["max_episode_steps"] = self.episode_length
         if self.calibration is not None:
             kwargs["calibration"] = self.calibration
+        if self.dynamics is not None:
+            kwargs["dynamics"] = self.dynamics
         return kwargs
 
     @property
