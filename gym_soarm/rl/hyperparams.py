@@ -57,7 +57,13 @@ HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "policy_kwargs": {"net_arch": [128, 128]},
             },
         },
-        "ReachTarget-v0": {"steps": 600_000, "eval_every": 50_000},
+        "ReachTarget-v0": {"steps": 1_000_000, "eval_every": 50_000},
+        "LiftCube-v0": {
+            "n_envs": 16,
+            "steps": 6_000_000,
+            "eval_every": 250_000,
+            "algo": {"n_steps": 128, "batch_size": 1024, "n_epochs": 5, "ent_coef": 0.001},
+        },
     },
     "sac": {
         "default": {
@@ -81,7 +87,7 @@ HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "policy_kwargs": {"net_arch": [128, 128]},
             },
         },
-        "ReachTarget-v0": {"steps": 100_000, "eval_every": 10_000},
+        "ReachTarget-v0": {"steps": 300_000, "eval_every": 25_000},
     },
 }
 
