@@ -50,6 +50,14 @@ RENDER_FPS = 50
 # Scene figures.
 ROBOT_BASE_POS_M: tuple[float, float, float] = (0.0, 0.15, 0.0)
 ROBOT_BASE_YAW_DEG = 90.0
+SHOULDER_PAN_OFFSET_M = 0.0388353
+"""The shoulder pan axis's offset from the robot base's centre along the base's x axis
+(the ``shoulder`` body's position in ``so101.xml``)."""
+PAN_AXIS_XY_M: tuple[float, float] = (
+    ROBOT_BASE_POS_M[0],
+    ROBOT_BASE_POS_M[1] + SHOULDER_PAN_OFFSET_M,
+)
+"""Where the shoulder pan axis meets the table (m): the base faces +y, so the offset is along y."""
 TABLE_SIZE_M: tuple[float, float] = (0.64, 0.45)
 TABLE_TOP_Z_M = 0.0
 

@@ -567,8 +567,9 @@ class SoArmEnv(gym.Env):
         self._step_count += 1
         if divergence is not None:
             return self._truncate_diverged_episode(divergence)
-        success = self._task.is_success(self._physics)
-        terms = self._task.reward_terms(self._physics, success=success)
+        evaluation = self._task.evaluate(self._physics)
+        success = self._task.is_success(self._physics, evaluation)
+        terms = self._task.reward_terms(self._physics, evaluation)
         if self.reward_type == "sparse":
             reward = float(success)
         elif success:
@@ -576,7 +577,7 @@ class SoArmEnv(gym.Env):
         else:
             reward = self._task.weights.total(terms)
         obs = self._observation()
-        info = self._info(success=success, terms=terms)
+        info = self._info(evaluation, terms)
         if self._viewer is not None:
             self._viewer.show(info)
         return obs, reward, success, False, info
@@ -759,17 +760,22 @@ class SoArmEnv(gym.Env):
         return (("pixels", self._rgb), ("depth", self._depth), ("segmentation", self._segmentation))
 
     def _info(
-        self, success: bool | None = None, terms: dict[str, float] | None = None
+        self, evaluation: dict[str, Any] | None = None, terms: dict[str, float] | None = None
     ) -> dict[str, Any]:
-        """The info of a sound state (a diverged step builds its own from the last one)."""
+        """The info of a sound state (a diverged step builds its own from the last one).
+
+        ``evaluation`` and ``terms``: the step's task evaluation and reward terms; a reset
+        evaluates the task here, once.
+        """
         physics = self._physics
-        if success is None:
-            success = self._task.is_success(physics)
+        task = self._task
+        if evaluation is None:
+            evaluation = task.evaluate(physics)
         if terms is None:
-            terms = self._task.reward_terms(physics, success=success)
+            terms = task.reward_terms(physics, evaluation)
         self._last_info = {
-            "is_success": bool(success),
-            **self._task.episode_info(physics),
+            "is_success": bool(task.is_success(physics, evaluation)),
+            **task.episode_info(physics, evaluation),
             "gripper_pos": physics.gripper_position(),
             "reward_terms": dict(terms),
             "task": self.task_description,

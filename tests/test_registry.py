@@ -38,7 +38,12 @@ class LiftBlockTask(Task):
     """Lift the yellow bar 3 cm; it starts anywhere in a small region, any yaw."""
 
     weights = RewardWeights({"grasp": 0.4, "lift": 0.6})
-    state_fields: ClassVar = (position_field("block_pos", "block"), scalar_field("block_yaw", 4.0))
+    state_fields: ClassVar = (
+        position_field(
+            "block_pos", "block", lambda physics, task: physics.object_position(BLOCK.name)
+        ),
+        scalar_field("block_yaw", 4.0, lambda physics, task: [physics.object_yaw(BLOCK.name)]),
+    )
 
     def initialize_episode(self, physics: SoArmPhysics, rng: np.random.Generator, options) -> None:
         physics.reset_to_home()
@@ -47,21 +52,17 @@ class LiftBlockTask(Task):
         position = np.array([x, y, BLOCK.rest_height_m])
         physics.set_object_pose(BLOCK.name, position, placement.yaw_quaternion(yaw))
 
-    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
-        return np.append(physics.object_position(BLOCK.name), physics.object_yaw(BLOCK.name))
+    def evaluate(self, physics: SoArmPhysics) -> dict:
+        grasped = physics.grasped(BLOCK.name)
+        height = physics.object_height(BLOCK.name)
+        return {"success": grasped and height >= LIFT_M, "grasped": grasped, "height_m": height}
 
-    def is_success(self, physics: SoArmPhysics) -> bool:
-        return physics.grasped(BLOCK.name) and physics.object_height(BLOCK.name) >= LIFT_M
-
-    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
-        if not physics.grasped(BLOCK.name):
+    def compute_reward_terms(self, evaluation: dict) -> dict[str, float]:
+        if not evaluation["grasped"]:
             return {"grasp": 0.0, "lift": 0.0}
-        return {
-            "grasp": 1.0,
-            "lift": min(max(physics.object_height(BLOCK.name) / LIFT_M, 0.0), 1.0),
-        }
+        return {"grasp": 1.0, "lift": min(max(evaluation["height_m"] / LIFT_M, 0.0), 1.0)}
 
-    def episode_info(self, physics: SoArmPhysics) -> dict:
+    def compute_info(self, physics: SoArmPhysics, evaluation: dict) -> dict:
         return {"block_pos": physics.object_position(BLOCK.name)}
 
 

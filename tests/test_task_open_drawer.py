@@ -37,7 +37,7 @@ def _cabinet_pose(physics) -> tuple[np.ndarray, float]:
 def test_cabinet_stands_on_the_table_facing_the_arm(env):
     physics = env.unwrapped.physics
     half_x, half_y = constants.TABLE_SIZE_M[0] / 2, constants.TABLE_SIZE_M[1] / 2
-    axis = np.array([*open_drawer.PAN_AXIS_XY_M, 0.0])
+    axis = np.array([*constants.PAN_AXIS_XY_M, 0.0])
     for seed in range(20):
         _, info = env.reset(seed=seed)
         position, yaw = _cabinet_pose(physics)
@@ -108,7 +108,7 @@ def test_drawer_stays_where_the_expert_leaves_it(env):
     assert first_success is not None and first_success < steps
     left_at = physics.fixture_joint_position(open_drawer.DRAWER.name)
     assert left_at >= open_drawer.OPEN_SUCCESS_M
-    assert not any(open_drawer.jaws_on_geoms(physics, open_drawer.handle_geoms(physics)))
+    assert not any(physics.jaw_contacts_with(open_drawer.handle_geoms(physics)))
     for _ in range(100):
         obs, _, _, _, info = base.step(expert(obs, info))
     assert abs(physics.fixture_joint_position(open_drawer.DRAWER.name) - left_at) < 1e-3

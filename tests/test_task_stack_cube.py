@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import gym_soarm
+from gym_soarm.constants import PAN_AXIS_XY_M
 from gym_soarm.expert import make_expert
 from gym_soarm.sim.kinematics import ArmKinematics
 from gym_soarm.tasks import placement
@@ -23,7 +24,6 @@ from gym_soarm.tasks.stack_cube import (
     CUBE_HALF_M,
     CUBE_SIZE_M,
     MIN_PAN_DISTANCE_M,
-    PAN_AXIS_XY_M,
     RED_CUBE,
     START_GAP_M,
     START_REGION_M,

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+from collections.abc import Sequence
 
 import mujoco
 import numpy as np
@@ -50,6 +51,7 @@ class _FixtureIndex:
     body: int
     xpos: np.ndarray
     geoms: frozenset[int]
+    joint: int
     qpos_adr: int
 
 
@@ -179,6 +181,7 @@ class SoArmPhysics(dm_mujoco.Physics):
                 body=body,
                 xpos=self._site_xpos[site],
                 geoms=geoms,
+                joint=joint,
                 qpos_adr=int(m.jnt_qposadr[joint]) if joint >= 0 else -1,
             )
         self._geom_groups: dict[str, frozenset[int]] = {
@@ -367,6 +370,48 @@ class SoArmPhysics(dm_mujoco.Physics):
                 return True
         return False
 
+    def jaw_pads_center(self) -> np.ndarray:
+        """World position (m) midway between the two jaw pads: the centre of closed jaws."""
+        xpos = self._mj_data.geom_xpos
+        fixed, moving = self._pad_geoms
+        return (xpos[fixed] + xpos[moving]) / 2
+
+    def fixture_part_geoms(self, name: str, parts: Sequence[int]) -> frozenset[int]:
+        """The geom ids of fixture ``name``'s parts: indices into its declared geoms.
+
+        Raises:
+            ValueError: no fixture ``name``, or it has no part of one of those indices.
+        """
+        m = self._mj_model
+        self._fixture(name)
+        ids = {
+            index: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"{name}_{index}")
+            for index in parts
+        }
+        missing = [index for index, geom in ids.items() if geom < 0]
+        if missing:
+            raise ValueError(
+                f"fixture {name!r} has no geoms {missing}; pass indices into its declared geoms."
+            )
+        return frozenset(ids.values())
+
+    def jaw_contacts_with(self, geoms: frozenset[int]) -> tuple[bool, bool]:
+        """Whether the fixed and the moving jaw pad each touch one of ``geoms`` (geom ids,
+        e.g. :meth:`fixture_part_geoms`)."""
+        d = self._mj_data
+        fixed_pad, moving_pad = self._pad_geoms
+        fixed = moving = False
+        for geom1, geom2 in d.contact.geom[: d.ncon].tolist():
+            if geom1 in geoms:
+                other = geom2
+            elif geom2 in geoms:
+                other = geom1
+            else:
+                continue
+            fixed = fixed or other == fixed_pad
+            moving = moving or other == moving_pad
+        return fixed, moving
+
     # --- objects and fixtures, by name ---------------------------------------------------
     @property
     def object_names(self) -> tuple[str, ...]:
@@ -450,6 +495,52 @@ class SoArmPhysics(dm_mujoco.Physics):
                 "fixture fixed to the world can be moved to a world position."
             )
         self._mj_model.body_pos[index.body] = position
+
+    def fixture_body_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Position (m) and (w, x, y, z) quaternion of fixture ``name``'s body, as the model
+        holds them (relative to its parent: the world, for a fixture fixed to it)."""
+        body = self._fixture(name).body
+        m = self._mj_model
+        return m.body_pos[body].copy(), m.body_quat[body].copy()
+
+    def set_fixture_pose(self, name: str, position: np.ndarray, quaternion: np.ndarray) -> None:
+        """Put fixed fixture ``name``'s body at world ``position`` (m) turned by ``quaternion``
+        (w, x, y, z), in a reset context; fixtures hanging from it move with it.
+
+        Raises:
+            ValueError: as :meth:`set_fixture_position`.
+        """
+        self.set_fixture_position(name, position)
+        self._mj_model.body_quat[self._fixture(name).body] = quaternion
+
+    def fixture_joint_axis(self, name: str) -> np.ndarray:
+        """World direction (unit) of fixture ``name``'s joint axis (a slide's opening direction).
+
+        Raises:
+            ValueError: no fixture ``name``, or it has no joint.
+        """
+        index = self._fixture(name)
+        if index.joint < 0:
+            raise ValueError(f"fixture {name!r} has no joint; it does not move.")
+        return self._mj_data.xaxis[index.joint].copy()
+
+    def geom_discs(self, name: str) -> list[tuple[float, float, float]]:
+        """(x, y, bounding radius) in m of every geom of object or fixture ``name``'s body,
+        where the latest kinematics (:meth:`forward_kinematics`) put them."""
+        if name in self._objects:
+            body = int(self._mj_model.geom_bodyid[self._objects[name].geom])
+        else:
+            body = self._fixture(name).body
+        m, d = self._mj_model, self._mj_data
+        discs = []
+        for geom in np.flatnonzero(m.geom_bodyid == body):
+            x, y, _ = d.geom_xpos[geom]
+            discs.append((float(x), float(y), float(m.geom_rbound[geom])))
+        return discs
+
+    def forward_kinematics(self) -> None:
+        """Place every body and geom from qpos now (inside a reset context, before it ends)."""
+        mujoco.mj_kinematics(self._mj_model, self._mj_data)
 
     def fixture_joint_position(self, name: str) -> float:
         """Position of fixture ``name``'s joint (m for a slide, rad for a hinge)."""

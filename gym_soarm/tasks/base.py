@@ -20,7 +20,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
@@ -33,43 +33,6 @@ from gym_soarm.validation import ArgumentTypeError
 
 if TYPE_CHECKING:
     from gym_soarm.tasks.scripted import ScriptedExpert
-
-
-REACH_MARGIN_M = 0.10
-"""The reach term falls to 0.1 this far beyond 1 cm from the object."""
-LIFT_HEIGHT_M = 0.05
-"""A held object whose bottom is this high counts as lifted."""
-PLACE_MARGIN_M = 0.20
-"""The place term's carry share falls to 0.1 this far beyond the target."""
-RESTING_SPEED_M_S = 0.05
-"""An object slower than this is at rest."""
-PLACE_CARRY_CREDIT = 0.8
-"""Share of a place term earned by carrying the held object over its target."""
-
-
-def norm(vector: np.ndarray) -> float:
-    """Euclidean norm of a 1-D float array: what np.linalg.norm computes, with less overhead."""
-    return math.sqrt(vector.dot(vector))
-
-
-def tolerance(distance: float, bound: float, margin: float) -> float:
-    """1 inside ``bound``, falling smoothly to 0.1 at ``bound + margin``, in [0, 1]."""
-    if distance <= bound:
-        return 1.0
-    x = (distance - bound) / margin
-    return float(math.exp(-math.log(10.0) * x * x))
-
-
-def reach_term(physics: SoArmPhysics, name: str) -> float:
-    """1 with the jaws' centre within 1 cm of object ``name``, falling smoothly beyond."""
-    return tolerance(
-        norm(physics.grasp_center() - physics.object_position(name)), 0.01, REACH_MARGIN_M
-    )
-
-
-def lift_term(physics: SoArmPhysics, name: str, height_m: float = LIFT_HEIGHT_M) -> float:
-    """How far object ``name``'s bottom is raised towards ``height_m``, in [0, 1]."""
-    return min(max(physics.object_height(name) / height_m, 0.0), 1.0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,49 +50,94 @@ class RewardWeights:
         return float(sum(w * values[name] for name, w in self.terms.items()))
 
 
+StateReader = Callable[[SoArmPhysics, "Task"], Any]
+"""What a state field reads: ``read(physics, task)`` -> its values (array-like, float)."""
+
+
 class StateField(NamedTuple):
-    """One named field of ``environment_state``.
+    """One named field of ``environment_state``, declared with what it reads.
 
     Attributes:
         name: the field (``"cube_pos"``).
         names: the name of each value, for datasets (``("cube_x", "cube_y", "cube_z")``).
         bound: every value lies within [-bound, bound] (metres for positions).
+        read: ``read(physics, task)`` -> the field's ``size`` values now.
     """
 
     name: str
     names: tuple[str, ...]
     bound: float
+    read: StateReader
 
     @property
     def size(self) -> int:
         return len(self.names)
 
 
-def position_field(name: str, prefix: str) -> StateField:
-    """A world position (m): ``{prefix}_x``, ``_y``, ``_z``."""
+def position_field(name: str, prefix: str, read: StateReader) -> StateField:
+    """A world position (m): ``{prefix}_x``, ``_y``, ``_z``, read by ``read``."""
     return StateField(
-        name, (f"{prefix}_x", f"{prefix}_y", f"{prefix}_z"), constants.POSITION_BOUND_M
+        name, (f"{prefix}_x", f"{prefix}_y", f"{prefix}_z"), constants.POSITION_BOUND_M, read
     )
 
 
-def quaternion_field(name: str, prefix: str) -> StateField:
-    """An orientation quaternion (w, x, y, z): ``{prefix}_qw`` ... ``_qz``."""
-    return StateField(name, tuple(f"{prefix}_q{c}" for c in "wxyz"), 1.0)
+def quaternion_field(name: str, prefix: str, read: StateReader) -> StateField:
+    """An orientation quaternion (w, x, y, z): ``{prefix}_qw`` ... ``_qz``, read by ``read``."""
+    return StateField(name, tuple(f"{prefix}_q{c}" for c in "wxyz"), 1.0, read)
 
 
-def scalar_field(name: str, bound: float) -> StateField:
-    """One number within [-bound, bound]."""
-    return StateField(name, (name,), bound)
+def scalar_field(name: str, bound: float, read: StateReader) -> StateField:
+    """One number within [-bound, bound], read by ``read`` (a sequence of one value)."""
+    return StateField(name, (name,), bound, read)
+
+
+def object_position_field(name: str) -> StateField:
+    """``{name}_pos``: the position (m) of object ``name``'s centre."""
+    return position_field(f"{name}_pos", name, lambda physics, task: physics.object_position(name))
+
+
+def object_quaternion_field(name: str) -> StateField:
+    """``{name}_quat_wxyz``: the orientation of object ``name``."""
+    return quaternion_field(
+        f"{name}_quat_wxyz", name, lambda physics, task: physics.object_quaternion(name)
+    )
+
+
+def object_pose_fields(name: str) -> tuple[StateField, StateField]:
+    """Object ``name``'s position (``{name}_pos``) and quaternion (``{name}_quat_wxyz``)."""
+    return object_position_field(name), object_quaternion_field(name)
+
+
+def fixture_position_field(name: str, fixture: str) -> StateField:
+    """``{name}_pos``: the position (m) of fixture ``fixture``'s site."""
+    return position_field(
+        f"{name}_pos", name, lambda physics, task: physics.fixture_position(fixture)
+    )
+
+
+GRIPPER_POSITION_FIELD = position_field(
+    "gripper_pos", "gripper", lambda physics, task: physics.gripper_position()
+)
+"""``gripper_pos``: the position (m) of the ``gripperframe`` site."""
+
+
+Evaluation = dict[str, Any]
+"""What :meth:`Task.evaluate` found: ``"success"`` and the task's own flags and distances."""
 
 
 class Task:
     """Episode logic of one task; one subclass per task.
 
-    Subclasses set :attr:`weights` and :attr:`state_fields` and implement
-    :meth:`initialize_episode`, :meth:`environment_state`, :meth:`is_success` and
-    :meth:`reward_terms`; tasks with reset options set :attr:`option_keys` and
-    override :meth:`validate_options`; :meth:`episode_info` adds the task's own
-    ``info`` keys.
+    Subclasses set :attr:`weights` and :attr:`state_fields` (each field declared with what
+    it reads) and implement :meth:`initialize_episode`, :meth:`evaluate` and
+    :meth:`compute_reward_terms`; tasks with reset options set :attr:`option_keys` and
+    override :meth:`validate_options`; :meth:`compute_info` adds the task's own ``info``
+    keys.
+
+    The environment evaluates the task once a step (:meth:`evaluate`: the success flag
+    and the predicates and distances the reward and the info need, as ManiSkill's
+    ``evaluate()``) and hands the evaluation to :meth:`reward_terms`, :meth:`is_success`
+    and :meth:`episode_info`; called with the physics alone, they evaluate it themselves.
 
     Args:
         spec: the task's registered declaration (scene, instructions, step limit).
@@ -137,6 +145,7 @@ class Task:
 
     weights: ClassVar[RewardWeights]
     state_fields: ClassVar[tuple[StateField, ...]]
+    """The ``environment_state`` fields, in order, each with what it reads."""
     option_keys: ClassVar[tuple[str, ...]] = ()
     placements: ClassVar[tuple[str, ...]] = ("uniform",)
     """The ``object_placement`` values the task supports: ``"grid"`` and/or ``"uniform"``."""
@@ -198,24 +207,61 @@ class Task:
 
     # --- observation, reward, success ----------------------------------------------------
     def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
-        """The values of :attr:`state_fields`, concatenated (float64)."""
-        raise NotImplementedError
+        """The values of :attr:`state_fields`, each as its ``read`` finds it, concatenated."""
+        return np.concatenate([field.read(physics, self) for field in self.state_fields])
 
-    def is_success(self, physics: SoArmPhysics) -> bool:
-        raise NotImplementedError
+    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
+        """The task's predicates and distances now, computed once a step.
 
-    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
+        Returns:
+            A dict with ``"success"`` (bool) and whatever :meth:`compute_reward_terms` and
+            :meth:`compute_info` read (``"grasped"``, ``"goal_distance_m"``, ...).
+        """
+        raise NotImplementedError(
+            f"{type(self).__name__} must implement evaluate(physics) -> dict with 'success'."
+        )
+
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+        """The named reward terms, each in [0, 1], of a state that is not a success.
+
+        Read from ``evaluation`` (:meth:`evaluate`'s); a success scores every term 1.
+        """
+        raise NotImplementedError(
+            f"{type(self).__name__} must implement compute_reward_terms(evaluation)."
+        )
+
+    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
+        """The task's own ``info`` keys (the environment adds the common ones)."""
+        return {}
+
+    def is_success(self, physics: SoArmPhysics, evaluation: Evaluation | None = None) -> bool:
+        """Whether the task is done (``evaluation``: :meth:`evaluate`'s, when the caller has it)."""
+        if evaluation is None:
+            evaluation = self.evaluate(physics)
+        return evaluation["success"]
+
+    def reward_terms(
+        self, physics: SoArmPhysics, evaluation: Evaluation | None = None
+    ) -> dict[str, float]:
         """The named reward terms, each in [0, 1], that never fall as the task progresses.
 
         Args:
             physics: the simulation to score.
-            success: ``is_success(physics)`` when the caller already has it.
+            evaluation: :meth:`evaluate`'s, when the caller already has it.
         """
-        raise NotImplementedError
+        if evaluation is None:
+            evaluation = self.evaluate(physics)
+        if evaluation["success"]:
+            return dict.fromkeys(self.weights.terms, 1.0)
+        return self.compute_reward_terms(evaluation)
 
-    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
-        """The task's own ``info`` keys (the environment adds the common ones)."""
-        return {}
+    def episode_info(
+        self, physics: SoArmPhysics, evaluation: Evaluation | None = None
+    ) -> dict[str, Any]:
+        """The task's own ``info`` keys (``evaluation``: :meth:`evaluate`'s, when the caller has it)."""
+        if evaluation is None:
+            evaluation = self.evaluate(physics)
+        return self.compute_info(physics, evaluation)
 
     def evaluation_resets(self, seeds: int) -> list[tuple[int, dict[str, Any] | None]]:
         """(seed, options) of the episodes the expert is measured on: seeds 0 .. seeds-1."""

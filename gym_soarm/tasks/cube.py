@@ -20,11 +20,10 @@ from gym_soarm.sim.objects import SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
+    GRIPPER_POSITION_FIELD,
+    Evaluation,
     Task,
-    lift_term,
-    position_field,
-    quaternion_field,
-    reach_term,
+    object_pose_fields,
 )
 from gym_soarm.validation import ArgumentTypeError
 
@@ -150,7 +149,7 @@ class CubeGridTask(Task):
         )
         self.start = GridStart(cell, yaw)
 
-    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
         start = self.start
         return {
             "cube_grid_position": start.grid_cell,
@@ -164,17 +163,5 @@ class CubeGridTask(Task):
             return super().evaluation_resets(seeds)
         return grid_evaluation_resets(range(seeds))
 
-    # --- shared reward pieces --------------------------------------------------------
-    def _reach(self, physics: SoArmPhysics) -> float:
-        return reach_term(physics, self.cube)
 
-    def _lift_progress(self, physics: SoArmPhysics) -> float:
-        """How far a held cube is raised towards the carry height, in [0, 1]."""
-        return lift_term(physics, self.cube)
-
-
-CUBE_STATE_FIELDS = (
-    position_field("cube_pos", "cube"),
-    quaternion_field("cube_quat_wxyz", "cube"),
-    position_field("gripper_pos", "gripper"),
-)
+CUBE_STATE_FIELDS = (*object_pose_fields(CUBE.name), GRIPPER_POSITION_FIELD)

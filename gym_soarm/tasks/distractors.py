@@ -9,7 +9,6 @@ from the environment's generator.
 
 from __future__ import annotations
 
-import mujoco
 import numpy as np
 
 from gym_soarm.sim.objects import Scene, SceneObject
@@ -49,17 +48,12 @@ def place_distractors(
     """
     if count == 0:
         return []
-    m, d = physics.model.ptr, physics.data.ptr
-    mujoco.mj_kinematics(m, d)  # where the task put its objects, and its fixtures' parts
+    physics.forward_kinematics()  # where the task put its objects, and its fixtures' parts
     ours = {item.name for item in DISTRACTORS[:count]}
     keep_clear: list[tuple[float, float, float]] = []
     for name in (*physics.object_names, *physics.fixture_names):
-        if name in ours:
-            continue
-        body = m.body(name).id
-        for geom in np.flatnonzero(m.geom_bodyid == body):
-            x, y, _ = d.geom_xpos[geom]
-            keep_clear.append((float(x), float(y), float(m.geom_rbound[geom])))
+        if name not in ours:
+            keep_clear += physics.geom_discs(name)
     items = DISTRACTORS[:count]
     spots = placement.draw_uniform_positions(
         rng, [item.footprint_radius_m for item in items], REGION_M, keep_clear, gap_m=GAP_M

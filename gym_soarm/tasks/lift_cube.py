@@ -9,13 +9,12 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-import numpy as np
-
 from gym_soarm.sim.objects import Scene
 from gym_soarm.sim.physics import SoArmPhysics
-from gym_soarm.tasks.base import LIFT_HEIGHT_M, RewardWeights, TaskSpec
+from gym_soarm.tasks.base import Evaluation, RewardWeights, TaskSpec
 from gym_soarm.tasks.cube import CUBE, CUBE_STATE_FIELDS, CubeGridTask
-from gym_soarm.tasks.scripted import Phase, ScriptedExpert
+from gym_soarm.tasks.rewards import LIFT_HEIGHT_M, lift_progress, pick_terms, reach_distance
+from gym_soarm.tasks.scripted import LiftExpert
 
 
 class LiftTask(CubeGridTask):
@@ -24,33 +23,22 @@ class LiftTask(CubeGridTask):
     weights = RewardWeights({"reach": 0.2, "grasp": 0.3, "lift": 0.5})
     state_fields: ClassVar = CUBE_STATE_FIELDS
 
-    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
-        position, quaternion = physics.object_pose(self.cube)
-        return np.concatenate([position, quaternion, physics.gripper_position()])
+    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
+        grasped = physics.grasped(self.cube)
+        height = physics.object_height(self.cube)
+        return {
+            "success": grasped and height >= LIFT_HEIGHT_M,
+            "grasped": grasped,
+            "height_m": height,
+            "reach_distance_m": reach_distance(physics, self.cube),
+        }
 
-    def is_success(self, physics: SoArmPhysics) -> bool:
-        return physics.grasped(self.cube) and physics.object_height(self.cube) >= LIFT_HEIGHT_M
-
-    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
-        if not physics.grasped(self.cube):
-            return {"reach": self._reach(physics), "grasp": 0.0, "lift": 0.0}
-        height = physics.object_height(self.cube) / LIFT_HEIGHT_M
-        return {"reach": 1.0, "grasp": 1.0, "lift": min(max(height, 0.0), 1.0)}
-
-
-class LiftExpert(ScriptedExpert):
-    """Approach, descend, close and lift the cube 2.5 cm above the 5 cm line, then hold."""
-
-    def _after_grasp_phases(self) -> list[Phase]:
-        c = self.config
-        return [
-            Phase("lift", c.lift_steps, self._begin_lift),
-            Phase("hold", c.hold_steps, self._begin_hold),
-        ]
-
-    def _begin_hold(self) -> None:
-        if self._holding():
-            self._hold_arm()
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+        return pick_terms(
+            grasped=evaluation["grasped"],
+            reach_distance_m=evaluation["reach_distance_m"],
+            lift=lift_progress(evaluation["height_m"]),
+        )
 
 
 SPEC = TaskSpec(

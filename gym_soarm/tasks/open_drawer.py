@@ -39,7 +39,6 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 
 from gym_soarm import constants
@@ -47,16 +46,17 @@ from gym_soarm.sim.kinematics import downward_rotation
 from gym_soarm.sim.objects import Fixture, FixtureGeom, FixtureJoint, Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks.base import (
-    REACH_MARGIN_M,
+    GRIPPER_POSITION_FIELD,
+    Evaluation,
     RewardWeights,
     Task,
     TaskSpec,
-    norm,
+    fixture_position_field,
     position_field,
     quaternion_field,
     scalar_field,
-    tolerance,
 )
+from gym_soarm.tasks.rewards import norm, reach_closeness
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase, ScriptedExpert
 
 # --- the cabinet (its frame: origin on the table under its centre, -y out of its front) ---
@@ -212,10 +212,6 @@ HANDLE_BEARING_DEG = (75.0, 105.0)
 ahead, +y): the cabinet stands anywhere in this arc, facing the axis."""
 HANDLE_RADIUS_M = (0.17, 0.185)
 """The handle's distance from the shoulder pan axis (m) while the drawer is closed."""
-SHOULDER_OFFSET_M = 0.0388353
-"""The shoulder's offset from the robot base's centre along the base's x axis (so101.xml)."""
-PAN_AXIS_XY_M = (0.0, constants.ROBOT_BASE_POS_M[1] + SHOULDER_OFFSET_M)
-"""Where the shoulder pan axis meets the table: the base faces +y, so the offset is along y."""
 
 OPEN_SUCCESS_M = 0.06
 """The drawer counts as open from this far out."""
@@ -234,8 +230,9 @@ def drawer_placement(rng: np.random.Generator) -> tuple[np.ndarray, float]:
     radius = float(rng.uniform(*HANDLE_RADIUS_M))
     # The handle sits -HANDLE_Y_M in front of the cabinet's origin, along the radius.
     origin_radius = radius - HANDLE_Y_M
-    x = PAN_AXIS_XY_M[0] + origin_radius * math.cos(bearing)
-    y = PAN_AXIS_XY_M[1] + origin_radius * math.sin(bearing)
+    pan_x, pan_y = constants.PAN_AXIS_XY_M
+    x = pan_x + origin_radius * math.cos(bearing)
+    y = pan_y + origin_radius * math.sin(bearing)
     # The cabinet's -y (its front) points back along the radius, at the pan axis.
     return np.array([x, y, constants.TABLE_TOP_Z_M]), bearing - math.pi / 2
 
@@ -248,49 +245,28 @@ def place_fixture(physics: SoArmPhysics, name: str, position: np.ndarray, yaw: f
     attached to it (``parent=name``) move with it.
 
     Raises:
-        ValueError: the scene has no fixture ``name``.
+        ValueError: the scene has no fixture ``name`` (or it cannot be moved).
     """
-    if name not in physics.fixture_names:
-        raise ValueError(
-            f"this scene has no fixture {name!r}; its fixtures are {list(physics.fixture_names)}."
-        )
-    body = physics.model.ptr.body(name)
-    body.pos[:] = position
-    body.quat[:] = (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
-
-
-def jaws_on_geoms(physics: SoArmPhysics, geoms: frozenset[int]) -> tuple[bool, bool]:
-    """Whether the fixed and the moving jaw pad each touch one of ``geoms`` (geom ids)."""
-    data = physics.data.ptr
-    model = physics.model.ptr
-    fixed_pad, moving_pad = (
-        mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name) for name in constants.JAW_PAD_GEOMS
-    )
-    fixed = moving = False
-    for geom1, geom2 in data.contact.geom[: data.ncon].tolist():
-        if geom1 in geoms:
-            other = geom2
-        elif geom2 in geoms:
-            other = geom1
-        else:
-            continue
-        fixed = fixed or other == fixed_pad
-        moving = moving or other == moving_pad
-    return fixed, moving
+    quaternion = np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
+    physics.set_fixture_pose(name, position, quaternion)
 
 
 def handle_geoms(physics: SoArmPhysics) -> frozenset[int]:
     """The geom ids of the drawer's handle (bar and posts)."""
-    model = physics.model.ptr
-    return frozenset(
-        mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{DRAWER.name}_{index}")
-        for index in HANDLE_GEOM_INDICES
-    )
+    return physics.fixture_part_geoms(DRAWER.name, HANDLE_GEOM_INDICES)
 
 
 def slide_direction(physics: SoArmPhysics) -> np.ndarray:
     """World direction (unit, horizontal) in which the drawer opens."""
-    return physics.data.ptr.joint(DRAWER.name).xaxis.copy()
+    return physics.fixture_joint_axis(DRAWER.name)
+
+
+def _cabinet_position(physics: SoArmPhysics, task: Task) -> np.ndarray:
+    return physics.fixture_body_pose(CABINET.name)[0]
+
+
+def _cabinet_quaternion(physics: SoArmPhysics, task: Task) -> np.ndarray:
+    return physics.fixture_body_pose(CABINET.name)[1]
 
 
 class OpenDrawerTask(Task):
@@ -298,11 +274,15 @@ class OpenDrawerTask(Task):
 
     weights = RewardWeights({"reach": 0.2, "grasp": 0.3, "open": 0.5})
     state_fields: ClassVar = (
-        position_field("handle_pos", "handle"),
-        scalar_field("drawer_opening", 1.0),
-        position_field("cabinet_pos", "cabinet"),
-        quaternion_field("cabinet_quat_wxyz", "cabinet"),
-        position_field("gripper_pos", "gripper"),
+        fixture_position_field("handle", DRAWER.name),
+        scalar_field(
+            "drawer_opening",
+            1.0,
+            lambda physics, task: [physics.fixture_joint_position(DRAWER.name)],
+        ),
+        position_field("cabinet_pos", "cabinet", _cabinet_position),
+        quaternion_field("cabinet_quat_wxyz", "cabinet", _cabinet_quaternion),
+        GRIPPER_POSITION_FIELD,
     )
 
     def __init__(self, spec: TaskSpec) -> None:
@@ -324,38 +304,32 @@ class OpenDrawerTask(Task):
             self._handle_geoms = handle_geoms(physics)
         return self._handle_geoms
 
-    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
-        cabinet = physics.model.ptr.body(CABINET.name)
-        return np.concatenate(
-            [
-                physics.fixture_position(DRAWER.name),
-                [physics.fixture_joint_position(DRAWER.name)],
-                cabinet.pos,
-                cabinet.quat,
-                physics.gripper_position(),
-            ]
-        )
-
-    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
+        opening = physics.fixture_joint_position(DRAWER.name)
         return {
-            "drawer_opening_m": physics.fixture_joint_position(DRAWER.name),
-            "handle_pos": physics.fixture_position(DRAWER.name),
-            "cabinet_pos": physics.model.ptr.body(CABINET.name).pos.copy(),
-            "cabinet_yaw_deg": math.degrees(self._cabinet_yaw),
+            "success": opening >= OPEN_SUCCESS_M,
+            "opening_m": opening,
+            "handle_touched": any(physics.jaw_contacts_with(self._handle(physics))),
+            "handle_distance_m": norm(
+                physics.grasp_center() - physics.fixture_position(DRAWER.name)
+            ),
         }
 
-    def is_success(self, physics: SoArmPhysics) -> bool:
-        return physics.fixture_joint_position(DRAWER.name) >= OPEN_SUCCESS_M
-
-    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
-        if self.is_success(physics) if success is None else success:
-            return dict.fromkeys(self.weights.terms, 1.0)
-        opening = physics.fixture_joint_position(DRAWER.name)
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+        opening = evaluation["opening_m"]
         opened = min(max(opening / OPEN_SUCCESS_M, 0.0), 1.0)
-        if opening >= STAGE_CREDIT_OPEN_M or any(jaws_on_geoms(physics, self._handle(physics))):
+        if opening >= STAGE_CREDIT_OPEN_M or evaluation["handle_touched"]:
             return {"reach": 1.0, "grasp": 1.0, "open": opened}
-        distance = norm(physics.grasp_center() - physics.fixture_position(DRAWER.name))
-        return {"reach": tolerance(distance, 0.01, REACH_MARGIN_M), "grasp": 0.0, "open": opened}
+        reach = reach_closeness(evaluation["handle_distance_m"])
+        return {"reach": reach, "grasp": 0.0, "open": opened}
+
+    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
+        return {
+            "drawer_opening_m": evaluation["opening_m"],
+            "handle_pos": physics.fixture_position(DRAWER.name),
+            "cabinet_pos": physics.fixture_body_pose(CABINET.name)[0],
+            "cabinet_yaw_deg": math.degrees(self._cabinet_yaw),
+        }
 
 
 class OpenDrawerExpert(ScriptedExpert):

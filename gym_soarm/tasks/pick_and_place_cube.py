@@ -17,15 +17,20 @@ from gym_soarm import constants
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks.base import (
-    PLACE_CARRY_CREDIT,
-    PLACE_MARGIN_M,
-    RESTING_SPEED_M_S,
+    Evaluation,
     RewardWeights,
     TaskSpec,
-    position_field,
-    tolerance,
+    fixture_position_field,
 )
 from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M, CUBE_STATE_FIELDS, CubeGridTask
+from gym_soarm.tasks.rewards import (
+    PLACE_MARGIN_M,
+    RESTING_SPEED_M_S,
+    lift_progress,
+    pick_and_place_terms,
+    reach_distance,
+    tolerance,
+)
 from gym_soarm.tasks.scripted import PlaceExpert
 
 GOAL_RADIUS_M = 0.04
@@ -49,28 +54,19 @@ GOAL = Fixture(
 """A thin green disc on the table (visual only: the cube rests on the table beneath it)."""
 
 PLACE_HEIGHT_TOL_M = 0.005
-# Share of the place term earned by carrying the held cube over the pad, and by a cube
-# that sits on the pad but is still held or moving; the release earns the rest.
-PLACE_ON_PAD_CREDIT = 0.9
 
 
 class PickAndPlaceTask(CubeGridTask):
     """Pick the cube up and put it down, released and at rest, on the green pad."""
 
     weights = RewardWeights({"reach": 0.1, "grasp": 0.2, "lift": 0.3, "place": 0.4})
-    state_fields: ClassVar = (*CUBE_STATE_FIELDS, position_field("goal_pos", "goal"))
+    state_fields: ClassVar = (*CUBE_STATE_FIELDS, fixture_position_field("goal", GOAL.name))
     goal_pairs: ClassVar = (("cube_pos", "goal_pos"),)
-
-    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
-        position, quaternion = physics.object_pose(self.cube)
-        return np.concatenate(
-            [position, quaternion, physics.gripper_position(), physics.fixture_position("goal")]
-        )
 
     def _goal_distance(self, physics: SoArmPhysics) -> float:
         """Horizontal distance (m) from the cube's centre to the pad's centre."""
         cx, cy, _ = physics.object_position(self.cube).tolist()
-        gx, gy, _ = physics.fixture_position("goal").tolist()
+        gx, gy, _ = physics.fixture_position(GOAL.name).tolist()
         return math.hypot(cx - gx, cy - gy)
 
     def _on_goal(self, physics: SoArmPhysics, goal_distance: float) -> bool:
@@ -78,38 +74,39 @@ class PickAndPlaceTask(CubeGridTask):
             return False
         return abs(physics.object_height(self.cube) - GOAL_TOP_Z_M) <= PLACE_HEIGHT_TOL_M
 
-    def is_success(self, physics: SoArmPhysics) -> bool:
-        return (
-            self._on_goal(physics, self._goal_distance(physics))
-            and not physics.touched_by_jaws(self.cube)
-            and physics.object_speed(self.cube) < RESTING_SPEED_M_S
-        )
-
-    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
-        if self.is_success(physics) if success is None else success:
-            return dict.fromkeys(self.weights.terms, 1.0)
+    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
         goal_distance = self._goal_distance(physics)
-        if self._on_goal(physics, goal_distance):
-            # On the pad but still held or moving: only the release is missing.
-            return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACE_ON_PAD_CREDIT}
-        if not physics.grasped(self.cube):
-            return {"reach": self._reach(physics), "grasp": 0.0, "lift": 0.0, "place": 0.0}
-        # A held cube above the pad counts as lifted, so lowering it onto the pad loses nothing.
-        lift = 1.0 if goal_distance <= GOAL_RADIUS_M else self._lift_progress(physics)
-        near_goal = tolerance(goal_distance, GOAL_RADIUS_M / 2, PLACE_MARGIN_M)
+        on_goal = self._on_goal(physics, goal_distance)
         return {
-            "reach": 1.0,
-            "grasp": 1.0,
-            "lift": lift,
-            "place": PLACE_CARRY_CREDIT * near_goal * lift,
+            "success": (
+                on_goal
+                and not physics.touched_by_jaws(self.cube)
+                and physics.object_speed(self.cube) < RESTING_SPEED_M_S
+            ),
+            "on_goal": on_goal,
+            "goal_distance_m": goal_distance,
+            "grasped": physics.grasped(self.cube),
+            "height_m": physics.object_height(self.cube),
+            "reach_distance_m": reach_distance(physics, self.cube),
         }
+
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+        goal_distance = evaluation["goal_distance_m"]
+        return pick_and_place_terms(
+            on_target=evaluation["on_goal"],
+            grasped=evaluation["grasped"],
+            reach_distance_m=evaluation["reach_distance_m"],
+            lift=lift_progress(evaluation["height_m"]),
+            over_target=goal_distance <= GOAL_RADIUS_M,
+            near_target=tolerance(goal_distance, GOAL_RADIUS_M / 2, PLACE_MARGIN_M),
+        )
 
 
 class PickAndPlaceExpert(PlaceExpert):
     """Lift the cube, carry it over the pad, lower it, release it and move away."""
 
     def place_target(self) -> np.ndarray:
-        goal = self.env.physics.fixture_position("goal")
+        goal = self.env.physics.fixture_position(GOAL.name)
         return np.array([goal[0], goal[1], constants.TABLE_TOP_Z_M + CUBE_HALF_M])
 
 

@@ -38,16 +38,20 @@ from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
-    LIFT_HEIGHT_M,
-    PLACE_CARRY_CREDIT,
-    PLACE_MARGIN_M,
-    RESTING_SPEED_M_S,
+    GRIPPER_POSITION_FIELD,
+    Evaluation,
     RewardWeights,
     Task,
     TaskSpec,
-    position_field,
-    quaternion_field,
-    reach_term,
+    fixture_position_field,
+    object_pose_fields,
+)
+from gym_soarm.tasks.rewards import (
+    PLACE_MARGIN_M,
+    RESTING_SPEED_M_S,
+    lift_progress,
+    pick_and_place_terms,
+    reach_distance,
     tolerance,
 )
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, PlaceExpert
@@ -98,9 +102,6 @@ MAX_TILT_DEG = 10.0
 PLACE_HEIGHT_TOL_M = 0.005
 LIFT_DEAD_BAND_M = 0.002
 """Lift counts from this height: closing jaws rock a standing cylinder by a fraction of it."""
-# Share of the place term earned by carrying the held cylinder over the pad, and by a
-# cylinder that stands on the pad but is still held or moving; the release earns the rest.
-PLACE_ON_PAD_CREDIT = 0.9
 
 _COS_MAX_TILT = math.cos(math.radians(MAX_TILT_DEG))
 
@@ -140,10 +141,9 @@ class PickAndPlaceCylinderTask(Task):
 
     weights = RewardWeights({"reach": 0.1, "grasp": 0.2, "lift": 0.3, "place": 0.4})
     state_fields: ClassVar = (
-        position_field("cylinder_pos", "cylinder"),
-        quaternion_field("cylinder_quat_wxyz", "cylinder"),
-        position_field("gripper_pos", "gripper"),
-        position_field("pad_pos", "pad"),
+        *object_pose_fields(CYLINDER.name),
+        GRIPPER_POSITION_FIELD,
+        fixture_position_field("pad", PAD.name),
     )
     goal_pairs: ClassVar = (("cylinder_pos", "pad_pos"),)
     cylinder = CYLINDER.name
@@ -164,18 +164,12 @@ class PickAndPlaceCylinderTask(Task):
         )
         self.start_xy = (x, y)
 
-    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
-        position, quaternion = physics.object_pose(self.cylinder)
-        return np.concatenate(
-            [position, quaternion, physics.gripper_position(), physics.fixture_position("pad")]
-        )
-
-    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
         return {
             "cylinder_start_xy": [float(v) for v in self.start_xy],
             "cylinder_pos": physics.object_position(self.cylinder),
             "cylinder_tilt_deg": self._tilt_deg(physics),
-            "target_pos": physics.fixture_position("pad"),
+            "target_pos": physics.fixture_position(PAD.name),
         }
 
     # --- pieces -------------------------------------------------------------------------
@@ -186,7 +180,7 @@ class PickAndPlaceCylinderTask(Task):
     def _pad_distance(self, physics: SoArmPhysics) -> float:
         """Horizontal distance (m) from the cylinder's centre to the pad's centre."""
         cx, cy, _ = physics.object_position(self.cylinder).tolist()
-        px, py, _ = physics.fixture_position("pad").tolist()
+        px, py, _ = physics.fixture_position(PAD.name).tolist()
         return math.hypot(cx - px, cy - py)
 
     def _standing_on_pad(self, physics: SoArmPhysics, pad_distance: float) -> bool:
@@ -199,36 +193,32 @@ class PickAndPlaceCylinderTask(Task):
         bottom = position[2] - CYLINDER_HALF_HEIGHT_M - constants.TABLE_TOP_Z_M
         return abs(bottom) <= PLACE_HEIGHT_TOL_M
 
-    def is_success(self, physics: SoArmPhysics) -> bool:
-        return (
-            self._standing_on_pad(physics, self._pad_distance(physics))
-            and not physics.touched_by_jaws(self.cylinder)
-            and physics.object_speed(self.cylinder) < RESTING_SPEED_M_S
-        )
-
-    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
-        if self.is_success(physics) if success is None else success:
-            return dict.fromkeys(self.weights.terms, 1.0)
+    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
         pad_distance = self._pad_distance(physics)
-        if self._standing_on_pad(physics, pad_distance):
-            # Standing on the pad but still held or moving: only the release is missing.
-            return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACE_ON_PAD_CREDIT}
-        if not physics.grasped(self.cylinder):
-            reach = reach_term(physics, self.cylinder)
-            return {"reach": reach, "grasp": 0.0, "lift": 0.0, "place": 0.0}
-        # A held cylinder above the pad counts as lifted, so lowering it loses nothing.
-        if pad_distance <= PAD_RADIUS_M:
-            lift = 1.0
-        else:
-            raised = physics.object_height(self.cylinder) - LIFT_DEAD_BAND_M
-            lift = min(max(raised / (LIFT_HEIGHT_M - LIFT_DEAD_BAND_M), 0.0), 1.0)
-        near_pad = tolerance(pad_distance, PAD_RADIUS_M / 2, PLACE_MARGIN_M)
+        standing = self._standing_on_pad(physics, pad_distance)
         return {
-            "reach": 1.0,
-            "grasp": 1.0,
-            "lift": lift,
-            "place": PLACE_CARRY_CREDIT * near_pad * lift,
+            "success": (
+                standing
+                and not physics.touched_by_jaws(self.cylinder)
+                and physics.object_speed(self.cylinder) < RESTING_SPEED_M_S
+            ),
+            "standing_on_pad": standing,
+            "pad_distance_m": pad_distance,
+            "grasped": physics.grasped(self.cylinder),
+            "height_m": physics.object_height(self.cylinder),
+            "reach_distance_m": reach_distance(physics, self.cylinder),
         }
+
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+        pad_distance = evaluation["pad_distance_m"]
+        return pick_and_place_terms(
+            on_target=evaluation["standing_on_pad"],
+            grasped=evaluation["grasped"],
+            reach_distance_m=evaluation["reach_distance_m"],
+            lift=lift_progress(evaluation["height_m"], dead_band_m=LIFT_DEAD_BAND_M),
+            over_target=pad_distance <= PAD_RADIUS_M,
+            near_target=tolerance(pad_distance, PAD_RADIUS_M / 2, PLACE_MARGIN_M),
+        )
 
 
 CYLINDER_EXPERT_CONFIG = dataclasses.replace(
@@ -259,7 +249,7 @@ class PickAndPlaceCylinderExpert(PlaceExpert):
         return CYLINDER.name
 
     def place_target(self) -> np.ndarray:
-        pad = self.env.physics.fixture_position("pad")
+        pad = self.env.physics.fixture_position(PAD.name)
         return np.array([pad[0], pad[1], constants.TABLE_TOP_Z_M + CYLINDER_HALF_HEIGHT_M])
 
     def _begin_retreat(self) -> None:

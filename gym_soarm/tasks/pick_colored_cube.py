@@ -20,30 +20,26 @@ cube's position again (``target_pos``) and the gripper's position. ``info`` adds
 
 from __future__ import annotations
 
-import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
 
-from gym_soarm import constants
 from gym_soarm.sim.objects import Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
-    LIFT_HEIGHT_M,
-    REACH_MARGIN_M,
+    GRIPPER_POSITION_FIELD,
+    Evaluation,
     RewardWeights,
     Task,
     TaskSpec,
-    lift_term,
-    norm,
+    object_pose_fields,
     position_field,
-    quaternion_field,
-    tolerance,
 )
 from gym_soarm.tasks.cube import CUBE_HALF_M
-from gym_soarm.tasks.lift_cube import LiftExpert
+from gym_soarm.tasks.rewards import LIFT_HEIGHT_M, lift_progress, pick_terms, reach_distance
+from gym_soarm.tasks.scripted import LiftExpert
 
 COLOURS: tuple[str, ...] = ("red", "green", "blue")
 """The cubes' colours, in declaration order; each cube is called ``<colour>_cube``."""
@@ -73,76 +69,9 @@ ON_TABLE_HEIGHT_M = 0.005
 """A cube whose bottom is lower than this still rests on the table."""
 
 
-def draw_beside_arm(
-    rng: np.random.Generator,
-    radii_m: Sequence[float],
-    region_m: tuple[tuple[float, float], tuple[float, float]] = START_REGION_M,
-    lane_half_width_m: float = ARM_LANE_HALF_WIDTH_M,
-    keep_clear: Sequence[tuple[float, float, float]] = (),
-    gap_m: float = CUBE_GAP_M,
-    max_tries: int = 1000,
-) -> list[tuple[float, float]]:
-    """(x, y) for objects of footprint ``radii_m``, uniform in ``region_m`` outside the lane
-    under the arm (``|x| < lane_half_width_m``), never overlapping.
-
-    Args:
-        rng: the episode's generator.
-        radii_m: each object's footprint radius, in placing order.
-        region_m: ((x_min, x_max), (y_min, y_max)) the centres lie in, symmetric about x = 0.
-        lane_half_width_m: centres keep at least this far from x = 0.
-        keep_clear: (x, y, radius) discs no object may overlap (pads).
-        gap_m: free space left between any two footprints.
-        max_tries: draws per object before giving up.
-
-    Raises:
-        ValueError: the region is not symmetric about x = 0 or leaves no room beside the lane.
-        RuntimeError: an object found no free spot (the region is too crowded).
-    """
-    (x0, x1), (y0, y1) = region_m
-    if not math.isclose(x0, -x1) or not 0.0 <= lane_half_width_m < x1:
-        raise ValueError(
-            f"region_m's x range must be symmetric about 0 and wider than the lane "
-            f"(±{lane_half_width_m} m); got {region_m!r}."
-        )
-    placed: list[tuple[float, float, float]] = list(keep_clear)
-    positions: list[tuple[float, float]] = []
-    for radius in radii_m:
-        for _ in range(max_tries):
-            side = 1.0 if rng.integers(2) else -1.0
-            x = side * float(rng.uniform(lane_half_width_m, x1))
-            y = float(rng.uniform(y0, y1))
-            if all(math.hypot(x - px, y - py) >= radius + pr + gap_m for px, py, pr in placed):
-                break
-        else:
-            raise RuntimeError(
-                f"no free spot for an object of radius {radius} m in {region_m} beside the "
-                f"arm's lane after {max_tries} draws; the region is too crowded."
-            )
-        placed.append((x, y, radius))
-        positions.append((x, y))
-    return positions
-
-
 def instruction_for(colour: str) -> str:
     """The instruction sentence naming the cube of ``colour``."""
     return f"Pick up the {colour} cube."
-
-
-def set_cubes_down(
-    physics: SoArmPhysics,
-    rng: np.random.Generator,
-    cubes: Sequence[SceneObject],
-    positions: Sequence[tuple[float, float]],
-) -> None:
-    """Rest each cube on the table at its (x, y), turned by a yaw drawn from
-    :data:`YAW_RANGE_DEG` (one draw per cube, in order)."""
-    for cube, (x, y) in zip(cubes, positions, strict=True):
-        yaw = float(rng.uniform(*YAW_RANGE_DEG))
-        physics.set_object_pose(
-            cube.name,
-            np.array([x, y, constants.TABLE_TOP_Z_M + CUBE_HALF_M]),
-            placement.yaw_quaternion(yaw),
-        )
 
 
 class PickColoredCubeTask(Task):
@@ -150,16 +79,11 @@ class PickColoredCubeTask(Task):
 
     weights = RewardWeights({"reach": 0.2, "grasp": 0.3, "lift": 0.5})
     state_fields: ClassVar = (
-        *(
-            field
-            for colour in COLOURS
-            for field in (
-                position_field(f"{colour}_cube_pos", f"{colour}_cube"),
-                quaternion_field(f"{colour}_cube_quat_wxyz", f"{colour}_cube"),
-            )
+        *(field for name in CUBE_NAMES for field in object_pose_fields(name)),
+        position_field(
+            "target_pos", "target", lambda physics, task: physics.object_position(task.target)
         ),
-        position_field("target_pos", "target"),
-        position_field("gripper_pos", "gripper"),
+        GRIPPER_POSITION_FIELD,
     )
 
     def __init__(self, spec: TaskSpec) -> None:
@@ -184,42 +108,39 @@ class PickColoredCubeTask(Task):
         self.instruction = self.spec.instructions[choice]
         physics.reset_to_home()
         radii = [cube.footprint_radius_m for cube in CUBES]
-        positions = draw_beside_arm(rng, radii)
-        set_cubes_down(physics, rng, CUBES, positions)
+        positions = placement.draw_beside_arm(
+            rng, radii, START_REGION_M, ARM_LANE_HALF_WIDTH_M, gap_m=CUBE_GAP_M, by_side=True
+        )
+        placement.set_down(physics, rng, CUBES, positions, YAW_RANGE_DEG)
 
-    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
-        parts: list[np.ndarray] = []
-        for name in CUBE_NAMES:
-            position, quaternion = physics.object_pose(name)
-            parts += [position, quaternion]
-        parts += [physics.object_position(self.target), physics.gripper_position()]
-        return np.concatenate(parts)
+    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
+        grasped = physics.grasped(self.target)
+        height = physics.object_height(self.target)
+        others_on_table = all(
+            physics.object_height(name) < ON_TABLE_HEIGHT_M for name in self.others
+        )
+        return {
+            "success": grasped and height >= LIFT_HEIGHT_M and others_on_table,
+            "grasped": grasped,
+            "other_grasped": any(physics.grasped(name) for name in self.others),
+            "others_on_table": others_on_table,
+            "height_m": height,
+            "reach_distance_m": reach_distance(physics, self.target),
+        }
 
-    def _others_on_table(self, physics: SoArmPhysics) -> bool:
-        return all(physics.object_height(name) < ON_TABLE_HEIGHT_M for name in self.others)
-
-    def is_success(self, physics: SoArmPhysics) -> bool:
-        return (
-            physics.grasped(self.target)
-            and physics.object_height(self.target) >= LIFT_HEIGHT_M
-            and self._others_on_table(physics)
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+        if not evaluation["grasped"] and evaluation["other_grasped"]:
+            # A held wrong cube earns nothing.
+            return dict.fromkeys(self.weights.terms, 0.0)
+        # Another cube coming up with the target: lifting it earns nothing.
+        lift = lift_progress(evaluation["height_m"]) if evaluation["others_on_table"] else 0.0
+        return pick_terms(
+            grasped=evaluation["grasped"],
+            reach_distance_m=evaluation["reach_distance_m"],
+            lift=lift,
         )
 
-    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
-        if self.is_success(physics) if success is None else success:
-            return dict.fromkeys(self.weights.terms, 1.0)
-        if not physics.grasped(self.target):
-            if any(physics.grasped(name) for name in self.others):
-                return dict.fromkeys(self.weights.terms, 0.0)
-            distance = norm(physics.grasp_center() - physics.object_position(self.target))
-            return {"reach": tolerance(distance, 0.01, REACH_MARGIN_M), "grasp": 0.0, "lift": 0.0}
-        height = lift_term(physics, self.target)
-        if not self._others_on_table(physics):
-            # Another cube comes up with the target: lifting it earns nothing.
-            height = 0.0
-        return {"reach": 1.0, "grasp": 1.0, "lift": height}
-
-    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
         return {
             "target_colour": self.colour,
             "target_pos": physics.object_position(self.target),

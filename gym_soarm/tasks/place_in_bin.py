@@ -31,19 +31,23 @@ from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
-    PLACE_CARRY_CREDIT,
-    PLACE_MARGIN_M,
-    RESTING_SPEED_M_S,
+    GRIPPER_POSITION_FIELD,
+    Evaluation,
     RewardWeights,
     Task,
     TaskSpec,
-    lift_term,
-    position_field,
-    quaternion_field,
-    reach_term,
-    tolerance,
+    fixture_position_field,
+    object_pose_fields,
 )
 from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M
+from gym_soarm.tasks.rewards import (
+    PLACE_MARGIN_M,
+    RESTING_SPEED_M_S,
+    lift_progress,
+    pick_and_place_terms,
+    reach_distance,
+    tolerance,
+)
 from gym_soarm.tasks.scripted import PlaceExpert
 
 BIN_POSITION_M: tuple[float, float, float] = (0.15, 0.30, 0.0)
@@ -98,9 +102,6 @@ BIN_CLEARANCE_M = 0.03
 START_YAW_DEG: tuple[float, float] = (0.0, 90.0)
 OVER_BIN_RADIUS_M = 0.02
 """A cube centre this close (horizontally) to the bin's centre counts as over the bin."""
-# Share of the place term earned by carrying the held cube over the bin, and by a cube in
-# the bin that is still held or moving; the release earns the rest.
-PLACE_IN_BIN_CREDIT = 0.9
 CARRY_RIM_CLEARANCE_M = 0.02
 """Height of the held cube's bottom above the rim while carried."""
 RELEASE_GRIPPER_RAD = 0.4
@@ -112,10 +113,9 @@ class PlaceInBinTask(Task):
 
     weights = RewardWeights({"reach": 0.1, "grasp": 0.2, "lift": 0.3, "place": 0.4})
     state_fields: ClassVar = (
-        position_field("cube_pos", "cube"),
-        quaternion_field("cube_quat_wxyz", "cube"),
-        position_field("gripper_pos", "gripper"),
-        position_field("bin_pos", "bin"),
+        *object_pose_fields(CUBE.name),
+        GRIPPER_POSITION_FIELD,
+        fixture_position_field("bin", BIN.name),
     )
     goal_pairs: ClassVar = (("cube_pos", "bin_pos"),)
     cube = CUBE.name
@@ -141,17 +141,11 @@ class PlaceInBinTask(Task):
             placement.yaw_quaternion(yaw),
         )
 
-    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
-        position, quaternion = physics.object_pose(self.cube)
-        return np.concatenate(
-            [position, quaternion, physics.gripper_position(), physics.fixture_position("bin")]
-        )
-
     # --- geometry of the bin -----------------------------------------------------------
     def _bin_offset(self, physics: SoArmPhysics) -> tuple[float, float]:
         """(x, y) of the cube's centre relative to the bin's centre (m)."""
         cx, cy, _ = physics.object_position(self.cube).tolist()
-        bx, by, _ = physics.fixture_position("bin").tolist()
+        bx, by, _ = physics.fixture_position(BIN.name).tolist()
         return cx - bx, cy - by
 
     def _in_bin(self, physics: SoArmPhysics, dx: float, dy: float) -> bool:
@@ -169,39 +163,38 @@ class PlaceInBinTask(Task):
         top = physics.object_position(self.cube)[2] + reach_z - constants.TABLE_TOP_Z_M
         return top < BIN_RIM_Z_M
 
-    def is_success(self, physics: SoArmPhysics) -> bool:
-        return (
-            self._in_bin(physics, *self._bin_offset(physics))
-            and physics.touching(self.cube, "bin")
-            and not physics.touched_by_jaws(self.cube)
-            and physics.object_speed(self.cube) < RESTING_SPEED_M_S
-        )
-
-    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
-        if self.is_success(physics) if success is None else success:
-            return dict.fromkeys(self.weights.terms, 1.0)
+    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
         dx, dy = self._bin_offset(physics)
-        if self._in_bin(physics, dx, dy):
-            # In the bin but still held or moving: only the release is missing.
-            return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACE_IN_BIN_CREDIT}
-        if not physics.grasped(self.cube):
-            reach = reach_term(physics, self.cube)
-            return {"reach": reach, "grasp": 0.0, "lift": 0.0, "place": 0.0}
-        # A held cube over the bin counts as lifted, so lowering it into the bin loses nothing.
-        offset = math.hypot(dx, dy)
-        lift = 1.0 if offset <= OVER_BIN_RADIUS_M else lift_term(physics, self.cube)
-        over_bin = tolerance(offset, OVER_BIN_RADIUS_M, PLACE_MARGIN_M)
+        in_bin = self._in_bin(physics, dx, dy)
         return {
-            "reach": 1.0,
-            "grasp": 1.0,
-            "lift": lift,
-            "place": PLACE_CARRY_CREDIT * over_bin * lift,
+            "success": (
+                in_bin
+                and physics.touching(self.cube, BIN.name)
+                and not physics.touched_by_jaws(self.cube)
+                and physics.object_speed(self.cube) < RESTING_SPEED_M_S
+            ),
+            "in_bin": in_bin,
+            "bin_distance_m": math.hypot(dx, dy),
+            "grasped": physics.grasped(self.cube),
+            "height_m": physics.object_height(self.cube),
+            "reach_distance_m": reach_distance(physics, self.cube),
         }
 
-    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+        offset = evaluation["bin_distance_m"]
+        return pick_and_place_terms(
+            on_target=evaluation["in_bin"],
+            grasped=evaluation["grasped"],
+            reach_distance_m=evaluation["reach_distance_m"],
+            lift=lift_progress(evaluation["height_m"]),
+            over_target=offset <= OVER_BIN_RADIUS_M,
+            near_target=tolerance(offset, OVER_BIN_RADIUS_M, PLACE_MARGIN_M),
+        )
+
+    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
         return {
             "cube_pos": physics.object_position(self.cube).tolist(),
-            "target_pos": physics.fixture_position("bin").tolist(),
+            "target_pos": physics.fixture_position(BIN.name).tolist(),
         }
 
 
@@ -209,7 +202,7 @@ class PlaceInBinExpert(PlaceExpert):
     """Lift the cube, carry it over the bin above the rim, lower it in, release and rise."""
 
     def place_target(self) -> np.ndarray:
-        target = self.env.physics.fixture_position("bin")
+        target = self.env.physics.fixture_position(BIN.name)
         target[2] += CUBE_HALF_M
         return target
 

@@ -6,9 +6,13 @@ Tasks choose; both draw only from the generator they are given.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
+
+from gym_soarm import constants
+from gym_soarm.sim.objects import SceneObject
+from gym_soarm.sim.physics import SoArmPhysics
 
 # The 3 x 3 grid of start cells. Cell i sits at GRID_CENTER + (dx, dy) with
 # dx = GRID_DX_M[i // 3] and dy = GRID_DY_M[i % 3].
@@ -53,11 +57,44 @@ nearer, the arm's home pose hides them from the overview camera."""
 MAX_LAYOUT_DRAWS = 1000
 """Whole layouts drawn before :func:`draw_beside_arm` gives up."""
 
+Region = tuple[tuple[float, float], tuple[float, float]]
+"""((x_min, x_max), (y_min, y_max)) in metres."""
+
+
+def _draw_apart(
+    rng: np.random.Generator,
+    radii_m: Sequence[float],
+    region_m: Region,
+    keep_clear: Sequence[tuple[float, float, float]],
+    gap_m: float,
+    max_tries: int,
+    draw_x: Callable[[], float],
+    where: str,
+) -> list[tuple[float, float]]:
+    """Object by object, ``(draw_x(), uniform y)`` until the footprint is clear of the rest."""
+    _, (y0, y1) = region_m
+    placed: list[tuple[float, float, float]] = list(keep_clear)
+    positions: list[tuple[float, float]] = []
+    for radius in radii_m:
+        for _ in range(max_tries):
+            x = draw_x()
+            y = float(rng.uniform(y0, y1))
+            if all(math.hypot(x - px, y - py) >= radius + pr + gap_m for px, py, pr in placed):
+                break
+        else:
+            raise RuntimeError(
+                f"no free spot for an object of radius {radius} m in {region_m}{where} after "
+                f"{max_tries} draws; the region is too crowded."
+            )
+        placed.append((x, y, radius))
+        positions.append((x, y))
+    return positions
+
 
 def draw_uniform_positions(
     rng: np.random.Generator,
     radii_m: Sequence[float],
-    region_m: tuple[tuple[float, float], tuple[float, float]],
+    region_m: Region,
     keep_clear: Sequence[tuple[float, float, float]] = (),
     gap_m: float = 0.01,
     max_tries: int = 1000,
@@ -75,46 +112,86 @@ def draw_uniform_positions(
     Raises:
         RuntimeError: an object found no free spot (the region is too crowded).
     """
-    (x0, x1), (y0, y1) = region_m
-    placed: list[tuple[float, float, float]] = list(keep_clear)
-    positions: list[tuple[float, float]] = []
-    for radius in radii_m:
-        for _ in range(max_tries):
-            x = float(rng.uniform(x0, x1))
-            y = float(rng.uniform(y0, y1))
-            if all(math.hypot(x - px, y - py) >= radius + pr + gap_m for px, py, pr in placed):
-                break
-        else:
-            raise RuntimeError(
-                f"no free spot for an object of radius {radius} m in {region_m} after "
-                f"{max_tries} draws; the region is too crowded."
-            )
-        placed.append((x, y, radius))
-        positions.append((x, y))
-    return positions
+    (x0, x1), _ = region_m
+    return _draw_apart(
+        rng, radii_m, region_m, keep_clear, gap_m, max_tries, lambda: float(rng.uniform(x0, x1)), ""
+    )
 
 
 def draw_beside_arm(
     rng: np.random.Generator,
     radii_m: Sequence[float],
-    region_m: tuple[tuple[float, float], tuple[float, float]],
+    region_m: Region,
+    blind_half_width_m: float = ARM_SHADOW_HALF_WIDTH_M,
     keep_clear: Sequence[tuple[float, float, float]] = (),
     gap_m: float = 0.01,
+    *,
+    by_side: bool = False,
+    max_tries: int = 1000,
 ) -> list[tuple[float, float]]:
-    """Like :func:`draw_uniform_positions`, but every centre lies at least
-    :data:`ARM_SHADOW_HALF_WIDTH_M` from x = 0 (in the overview camera's view).
+    """(x, y) for objects of footprint ``radii_m``, uniform in ``region_m`` outside the arm's
+    blind strip (centres at least ``blind_half_width_m`` from x = 0, where the arm's home
+    pose hides them from the overview camera), never overlapping.
 
-    Whole layouts are drawn until one qualifies, so the layout stays uniform over the
-    allowed ones.
+    Two draws, both uniform over the allowed spots; a task keeps the one its seeds were
+    made with. ``by_side=False``: whole layouts of :func:`draw_uniform_positions` are
+    drawn until every centre is clear of the strip. ``by_side=True``: object by object, a
+    side of the strip, then x on that side (``region_m`` must be symmetric about x = 0).
+
+    Args:
+        rng: the episode's generator.
+        radii_m: each object's footprint radius, in placing order.
+        region_m: ((x_min, x_max), (y_min, y_max)) the centres lie in.
+        blind_half_width_m: half width of the strip about x = 0 no centre lies in.
+        keep_clear: (x, y, radius) discs no object may overlap (pads, fixtures).
+        gap_m: free space left between any two footprints.
+        by_side: draw object by object on either side (see above).
+        max_tries: draws per object before giving up.
 
     Raises:
-        RuntimeError: no layout qualified in :data:`MAX_LAYOUT_DRAWS` draws.
+        ValueError: ``by_side`` with a region not symmetric about x = 0 or no room beside
+            the strip.
+        RuntimeError: no free spot (``by_side``) or no layout in :data:`MAX_LAYOUT_DRAWS`
+            draws.
     """
+    (x0, x1), _ = region_m
+    if by_side:
+        if not math.isclose(x0, -x1) or not 0.0 <= blind_half_width_m < x1:
+            raise ValueError(
+                f"region_m's x range must be symmetric about 0 and wider than the arm's blind "
+                f"strip (±{blind_half_width_m} m) to draw by side; got {region_m!r}."
+            )
+
+        def draw_x() -> float:
+            side = 1.0 if rng.integers(2) else -1.0
+            return side * float(rng.uniform(blind_half_width_m, x1))
+
+        return _draw_apart(
+            rng, radii_m, region_m, keep_clear, gap_m, max_tries, draw_x, " beside the arm"
+        )
     for _ in range(MAX_LAYOUT_DRAWS):
-        spots = draw_uniform_positions(rng, radii_m, region_m, keep_clear, gap_m)
-        if all(abs(x) >= ARM_SHADOW_HALF_WIDTH_M for x, _ in spots):
+        spots = draw_uniform_positions(rng, radii_m, region_m, keep_clear, gap_m, max_tries)
+        if all(abs(x) >= blind_half_width_m for x, _ in spots):
             return spots
     raise RuntimeError(
         f"no layout of objects of radii {list(radii_m)} m in {region_m} kept "
-        f"{ARM_SHADOW_HALF_WIDTH_M} m from x = 0 after {MAX_LAYOUT_DRAWS} draws."
+        f"{blind_half_width_m} m from x = 0 after {MAX_LAYOUT_DRAWS} draws."
     )
+
+
+def set_down(
+    physics: SoArmPhysics,
+    rng: np.random.Generator,
+    items: Sequence[SceneObject],
+    positions: Sequence[tuple[float, float]],
+    yaw_range_deg: tuple[float, float] = (0.0, 90.0),
+) -> None:
+    """Rest each object on the table at its (x, y), turned by a yaw drawn uniformly from
+    ``yaw_range_deg`` (one draw per object, in order); inside a reset context."""
+    for item, (x, y) in zip(items, positions, strict=True):
+        yaw = float(rng.uniform(*yaw_range_deg))
+        physics.set_object_pose(
+            item.name,
+            np.array([x, y, constants.TABLE_TOP_Z_M + item.rest_height_m]),
+            yaw_quaternion(yaw),
+        )

@@ -28,7 +28,6 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 
 from gym_soarm import constants
@@ -37,18 +36,21 @@ from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
-    REACH_MARGIN_M,
-    RESTING_SPEED_M_S,
+    Evaluation,
     RewardWeights,
     Task,
     TaskSpec,
-    norm,
-    position_field,
-    tolerance,
+    fixture_position_field,
 )
 from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M, CUBE_STATE_FIELDS
-from gym_soarm.tasks.reach_target import NoGraspExpert
-from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase
+from gym_soarm.tasks.rewards import (
+    PLACED_CREDIT,
+    REACH_MARGIN_M,
+    RESTING_SPEED_M_S,
+    norm,
+    tolerance,
+)
+from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, NoGraspExpert, Phase
 
 TARGET_HALF_M = 0.035
 """Half the side of the green square."""
@@ -77,8 +79,6 @@ PUSH_START_BEHIND_M = 0.05
 """A push starts this far behind the cube's centre (the jaws and some clearance)."""
 PUSH_START_RADIUS_M: tuple[float, float] = (0.12, 0.27)
 """Where a push may start: its distance from the shoulder pan axis."""
-PAN_AXIS_XY_M: tuple[float, float] = (0.0, 0.1888)
-"""The shoulder pan axis on the table (the robot's base is at y = 0.15 m, the axis ahead)."""
 MAX_DRAWS = 1000
 
 LIFT_LIMIT_M = 0.01
@@ -87,18 +87,6 @@ PUSHER_BEHIND_M: tuple[float, float] = (0.02, 0.05)
 """Where the reach term wants the centre of the jaws: on the push line, this far (m)
 behind the cube's centre, at the height of the cube's centre."""
 REACH_BOUND_M = 0.015
-OVER_TARGET_CREDIT = 0.9
-"""The push term of a cube over the square that is still moving."""
-
-_JAW_PADS = constants.JAW_PAD_GEOMS
-
-
-def jaw_pads_center(physics: SoArmPhysics) -> np.ndarray:
-    """World position (m) midway between the two jaw pads: the centre of closed jaws."""
-    model = physics.model.ptr
-    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name) for name in _JAW_PADS]
-    xpos = physics.data.ptr.geom_xpos
-    return (xpos[ids[0]] + xpos[ids[1]]) / 2
 
 
 def draw_push(rng: np.random.Generator) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -112,6 +100,7 @@ def draw_push(rng: np.random.Generator) -> tuple[tuple[float, float], tuple[floa
     """
     (tx0, tx1), (ty0, ty1) = TARGET_REGION_M
     r0, r1 = PUSH_START_RADIUS_M
+    pan_x, pan_y = constants.PAN_AXIS_XY_M
     for _ in range(MAX_DRAWS):
         ((cx, cy),) = placement.draw_uniform_positions(
             rng, (CUBE.footprint_radius_m,), CUBE_REGION_M
@@ -121,7 +110,7 @@ def draw_push(rng: np.random.Generator) -> tuple[tuple[float, float], tuple[floa
         ux, uy = math.cos(heading), math.sin(heading)
         tx, ty = cx + distance * ux, cy + distance * uy
         sx, sy = cx - PUSH_START_BEHIND_M * ux, cy - PUSH_START_BEHIND_M * uy
-        radius = math.hypot(sx - PAN_AXIS_XY_M[0], sy - PAN_AXIS_XY_M[1])
+        radius = math.hypot(sx - pan_x, sy - pan_y)
         if tx0 <= tx <= tx1 and ty0 <= ty <= ty1 and r0 <= radius <= r1:
             return (cx, cy), (tx, ty)
     raise RuntimeError(f"no pushable cube and square layout after {MAX_DRAWS} draws.")
@@ -131,7 +120,7 @@ class PushTask(Task):
     """Push the cube over the green square without lifting it."""
 
     weights = RewardWeights({"reach": 0.3, "push": 0.7})
-    state_fields: ClassVar = (*CUBE_STATE_FIELDS, position_field("target_pos", "target"))
+    state_fields: ClassVar = (*CUBE_STATE_FIELDS, fixture_position_field("target", TARGET.name))
     goal_pairs: ClassVar = (("cube_pos", "target_pos"),)
     cube = CUBE.name
 
@@ -158,70 +147,60 @@ class PushTask(Task):
         self._direction = offset / self._start_distance
         self._max_height = 0.0
 
-    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
-        position, quaternion = physics.object_pose(self.cube)
-        return np.concatenate(
-            [
-                position,
-                quaternion,
-                physics.gripper_position(),
-                physics.fixture_position(TARGET.name),
-            ]
-        )
-
     # --- episode bookkeeping --------------------------------------------------------
     def _lifted(self, physics: SoArmPhysics) -> bool:
         """Whether the cube has been lifted above the limit this episode (updates the record)."""
         self._max_height = max(self._max_height, physics.object_height(self.cube))
         return self._max_height > LIFT_LIMIT_M
 
-    def _offset_to_target(self, physics: SoArmPhysics) -> np.ndarray:
-        """Horizontal offset (m) from the cube's centre to the square's centre."""
-        return physics.fixture_position(TARGET.name)[:2] - physics.object_position(self.cube)[:2]
-
-    @staticmethod
-    def _over_target(offset: np.ndarray) -> bool:
-        return abs(float(offset[0])) <= TARGET_HALF_M and abs(float(offset[1])) <= TARGET_HALF_M
-
-    def is_success(self, physics: SoArmPhysics) -> bool:
-        if self._lifted(physics):
-            return False
-        return (
-            self._over_target(self._offset_to_target(physics))
-            and physics.object_speed(self.cube) < RESTING_SPEED_M_S
-            and not physics.touched_by_jaws(self.cube)
-        )
-
-    def _reach(self, physics: SoArmPhysics) -> float:
-        """Closeness of the jaws to the stretch of the push line just behind the cube."""
+    def _pusher_distance(self, physics: SoArmPhysics) -> float:
+        """Distance (m) from the jaws to the stretch of the push line just behind the cube."""
         cube = physics.object_position(self.cube)
-        jaws = jaw_pads_center(physics)
+        jaws = physics.jaw_pads_center()
         # How far behind the cube's centre the jaws are, along the push, kept to the stretch.
         behind = float((cube[:2] - jaws[:2]) @ self._direction)
         behind = min(max(behind, PUSHER_BEHIND_M[0]), PUSHER_BEHIND_M[1])
         spot = cube
         spot[:2] -= behind * self._direction
-        return tolerance(norm(jaws - spot), REACH_BOUND_M, REACH_MARGIN_M)
+        return norm(jaws - spot)
 
-    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
-        if self.is_success(physics) if success is None else success:
-            return dict.fromkeys(self.weights.terms, 1.0)
-        if self._lifted(physics):
-            return {"reach": self._reach(physics), "push": 0.0}
-        offset = self._offset_to_target(physics)
-        if self._over_target(offset):
-            return {"reach": 1.0, "push": OVER_TARGET_CREDIT}
+    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
+        lifted = self._lifted(physics)
+        # Horizontal offset (m) from the cube's centre to the square's centre.
+        offset = physics.fixture_position(TARGET.name)[:2] - physics.object_position(self.cube)[:2]
+        over_target = (
+            abs(float(offset[0])) <= TARGET_HALF_M and abs(float(offset[1])) <= TARGET_HALF_M
+        )
+        return {
+            "success": (
+                not lifted
+                and over_target
+                and physics.object_speed(self.cube) < RESTING_SPEED_M_S
+                and not physics.touched_by_jaws(self.cube)
+            ),
+            "lifted": lifted,
+            "over_target": over_target,
+            "target_distance_m": norm(offset),
+            "pusher_distance_m": self._pusher_distance(physics),
+        }
+
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+        reach = tolerance(evaluation["pusher_distance_m"], REACH_BOUND_M, REACH_MARGIN_M)
+        if evaluation["lifted"]:
+            return {"reach": reach, "push": 0.0}
+        if evaluation["over_target"]:
+            return {"reach": 1.0, "push": PLACED_CREDIT}
         # Progress from the start towards the square's edge (reached when over it).
-        to_go = max(norm(offset) - TARGET_HALF_M, 0.0)
+        to_go = max(evaluation["target_distance_m"] - TARGET_HALF_M, 0.0)
         progress = 1.0 - to_go / (self._start_distance - TARGET_HALF_M)
-        push = OVER_TARGET_CREDIT * min(max(progress, 0.0), 1.0)
-        return {"reach": self._reach(physics), "push": push}
+        push = PLACED_CREDIT * min(max(progress, 0.0), 1.0)
+        return {"reach": reach, "push": push}
 
-    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
         return {
             "target_pos": [float(v) for v in physics.fixture_position(TARGET.name)],
             "cube_pos": [float(v) for v in physics.object_position(self.cube)],
-            "cube_lifted": self._lifted(physics),
+            "cube_lifted": evaluation["lifted"],
         }
 
 

@@ -24,19 +24,18 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gym_soarm.sim.kinematics import downward_rotation
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks.base import (
-    REACH_MARGIN_M,
+    GRIPPER_POSITION_FIELD,
+    Evaluation,
     RewardWeights,
     Task,
     TaskSpec,
-    norm,
-    position_field,
-    tolerance,
+    fixture_position_field,
 )
-from gym_soarm.tasks.scripted import Phase, ScriptedExpert
+from gym_soarm.tasks.rewards import REACH_MARGIN_M, norm, tolerance
+from gym_soarm.tasks.scripted import NoGraspExpert, Phase
 
 TARGET_RADIUS_M = 0.015
 """The ball is as wide as the cube: smaller, it is a few pixels of a 320 x 240 camera."""
@@ -62,10 +61,7 @@ class ReachTask(Task):
     """Touch the floating red target with the centre of the jaws."""
 
     weights = RewardWeights({"reach": 1.0})
-    state_fields: ClassVar = (
-        position_field("target_pos", "target"),
-        position_field("gripper_pos", "gripper"),
-    )
+    state_fields: ClassVar = (fixture_position_field("target", TARGET.name), GRIPPER_POSITION_FIELD)
 
     def initialize_episode(
         self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
@@ -75,56 +71,24 @@ class ReachTask(Task):
         z0, z1 = TARGET_HEIGHT_M
         physics.set_fixture_position(TARGET.name, rng.uniform((x0, y0, z0), (x1, y1, z1)))
 
-    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
-        return np.concatenate([physics.fixture_position(TARGET.name), physics.gripper_position()])
+    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
+        distance = norm(physics.grasp_center() - physics.fixture_position(TARGET.name))
+        return {"success": distance <= SUCCESS_DISTANCE_M, "target_distance_m": distance}
 
-    def _distance(self, physics: SoArmPhysics) -> float:
-        return norm(physics.grasp_center() - physics.fixture_position(TARGET.name))
-
-    def is_success(self, physics: SoArmPhysics) -> bool:
-        return self._distance(physics) <= SUCCESS_DISTANCE_M
-
-    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
         # 1 exactly when successful: the tolerance is 1 within the success distance.
-        return {"reach": tolerance(self._distance(physics), SUCCESS_DISTANCE_M, REACH_MARGIN_M)}
+        distance = evaluation["target_distance_m"]
+        return {"reach": tolerance(distance, SUCCESS_DISTANCE_M, REACH_MARGIN_M)}
 
-    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
         return {
             "target_pos": [float(v) for v in physics.fixture_position(TARGET.name)],
-            "target_distance": self._distance(physics),
+            "target_distance": evaluation["target_distance_m"],
         }
 
 
 HOVER_ABOVE_M = 0.04
 """The expert first comes to rest this far straight above the target."""
-
-
-class NoGraspExpert(ScriptedExpert):
-    """Base of the experts that grasp nothing: their phases start with :meth:`_swing_to`.
-
-    A generic helper of this module (``PushCube-v0``'s expert builds on it too).
-    """
-
-    def _grasp_phases(self) -> list[Phase]:
-        return []
-
-    def _swing_to(self, position: np.ndarray, yaw: float) -> None:
-        """Joint move of ``grasp_center`` to ``position``, jaws down at ``yaw`` and closed.
-
-        The phase lasts as long as the largest joint turn needs at
-        ``config.approach_speed_rad_per_step``, within ``config.rise_steps`` and
-        ``config.approach_steps``.
-        """
-        config = self.config
-        self._yaw = yaw
-        goal, _, _ = self._kinematics.solve(
-            self._seed_towards(position), position, downward_rotation(yaw)
-        )
-        distance = float(np.abs(goal - self._command[: self._n_arm]).max())
-        steps = math.ceil(distance / config.approach_speed_rad_per_step)
-        self._phase_length = min(max(steps, config.rise_steps), config.approach_steps)
-        self._joint_move(goal)
-        self._gripper(config.gripper_closed_rad)
 
 
 class ReachExpert(NoGraspExpert):

@@ -393,6 +393,52 @@ class ScriptedExpert:
         self._gripper(self.config.gripper_closed_rad)
 
 
+class LiftExpert(ScriptedExpert):
+    """Approach, descend, close and lift the object 2.5 cm above the 5 cm line, then hold.
+
+    ``LiftCube-v0``'s expert; ``PickColoredCube-v0``'s aims it at the named cube.
+    """
+
+    def _after_grasp_phases(self) -> list[Phase]:
+        c = self.config
+        return [
+            Phase("lift", c.lift_steps, self._begin_lift),
+            Phase("hold", c.hold_steps, self._begin_hold),
+        ]
+
+    def _begin_hold(self) -> None:
+        if self._holding():
+            self._hold_arm()
+
+
+class NoGraspExpert(ScriptedExpert):
+    """Base of the experts that grasp nothing: their phases start with :meth:`_swing_to`.
+
+    ``ReachTarget-v0``'s and ``PushCube-v0``'s experts build on it.
+    """
+
+    def _grasp_phases(self) -> list[Phase]:
+        return []
+
+    def _swing_to(self, position: np.ndarray, yaw: float) -> None:
+        """Joint move of ``grasp_center`` to ``position``, jaws down at ``yaw`` and closed.
+
+        The phase lasts as long as the largest joint turn needs at
+        ``config.approach_speed_rad_per_step``, within ``config.rise_steps`` and
+        ``config.approach_steps``.
+        """
+        config = self.config
+        self._yaw = yaw
+        goal, _, _ = self._kinematics.solve(
+            self._seed_towards(position), position, downward_rotation(yaw)
+        )
+        distance = float(np.abs(goal - self._command[: self._n_arm]).max())
+        steps = math.ceil(distance / config.approach_speed_rad_per_step)
+        self._phase_length = min(max(steps, config.rise_steps), config.approach_steps)
+        self._joint_move(goal)
+        self._gripper(config.gripper_closed_rad)
+
+
 class PlaceExpert(ScriptedExpert):
     """Grasp an object, lift it, carry it over a spot, lower it there, release and retreat.
 

@@ -41,21 +41,24 @@ import numpy as np
 from gym_soarm import constants
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
-    PLACE_CARRY_CREDIT,
-    PLACE_MARGIN_M,
-    REACH_MARGIN_M,
-    RESTING_SPEED_M_S,
+    GRIPPER_POSITION_FIELD,
+    Evaluation,
     RewardWeights,
     Task,
     TaskSpec,
-    lift_term,
-    position_field,
-    quaternion_field,
-    tolerance,
+    fixture_position_field,
+    object_pose_fields,
 )
 from gym_soarm.tasks.cube import CUBE_HALF_M
-from gym_soarm.tasks.pick_colored_cube import draw_beside_arm, set_cubes_down
+from gym_soarm.tasks.rewards import (
+    PLACE_MARGIN_M,
+    RESTING_SPEED_M_S,
+    lift_progress,
+    pick_and_place_terms,
+    tolerance,
+)
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase, PlaceExpert
 
 COLOURS: tuple[str, ...] = ("red", "green", "blue")
@@ -101,15 +104,15 @@ PADS: tuple[Fixture, ...] = tuple(
 
 START_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.12, 0.12), (0.26, 0.36))
 """Where the cubes' centres start: ((x_min, x_max), (y_min, y_max)), between the pads and
-beside the arm's home pose (:func:`~gym_soarm.tasks.pick_colored_cube.draw_beside_arm`)."""
+beside the arm's home pose (:func:`~gym_soarm.tasks.placement.draw_beside_arm`)."""
+ARM_LANE_HALF_WIDTH_M = 0.045
+"""Centres keep this far from x = 0, out of the lane under the arm's home pose."""
 CUBE_GAP_M = 0.02
+YAW_RANGE_DEG: tuple[float, float] = (0.0, 90.0)
 
 REACH_HEADROOM_M = 0.10
 """Height above a cube within which ``reach`` ignores the jaws' height."""
 PLACE_HEIGHT_TOL_M = 0.005
-# Share of the place stage earned by carrying the held cube over its pad, and by a cube
-# on its pad that is still in the jaws; letting go earns the rest.
-PLACE_ON_PAD_CREDIT = 0.9
 STAGES: tuple[str, ...] = ("reach", "grasp", "lift", "place")
 # How far along a cube is, to choose the one worked on (the stages' weights in a single
 # pick-and-place).
@@ -139,16 +142,9 @@ class SortCubesTask(Task):
         }
     )
     state_fields: ClassVar = (
-        *(
-            field
-            for colour in COLOURS
-            for field in (
-                position_field(f"{colour}_cube_pos", f"{colour}_cube"),
-                quaternion_field(f"{colour}_cube_quat_wxyz", f"{colour}_cube"),
-            )
-        ),
-        *(position_field(f"{colour}_pad_pos", f"{colour}_pad") for colour in COLOURS),
-        position_field("gripper_pos", "gripper"),
+        *(field for colour in COLOURS for field in object_pose_fields(cube_name(colour))),
+        *(fixture_position_field(pad_name(colour), pad_name(colour)) for colour in COLOURS),
+        GRIPPER_POSITION_FIELD,
     )
     goal_pairs: ClassVar = tuple((f"{c}_cube_pos", f"{c}_pad_pos") for c in COLOURS)
 
@@ -158,19 +154,16 @@ class SortCubesTask(Task):
         physics.reset_to_home()
         radii = [cube.footprint_radius_m for cube in CUBES]
         keep_clear = [(x, y, PAD_RADIUS_M) for x, y, _ in PAD_POSITIONS_M.values()]
-        positions = draw_beside_arm(
-            rng, radii, START_REGION_M, keep_clear=keep_clear, gap_m=CUBE_GAP_M
+        positions = placement.draw_beside_arm(
+            rng,
+            radii,
+            START_REGION_M,
+            ARM_LANE_HALF_WIDTH_M,
+            keep_clear=keep_clear,
+            gap_m=CUBE_GAP_M,
+            by_side=True,
         )
-        set_cubes_down(physics, rng, CUBES, positions)
-
-    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
-        parts: list[np.ndarray] = []
-        for colour in COLOURS:
-            position, quaternion = physics.object_pose(cube_name(colour))
-            parts += [position, quaternion]
-        parts += [physics.fixture_position(pad_name(colour)) for colour in COLOURS]
-        parts.append(physics.gripper_position())
-        return np.concatenate(parts)
+        placement.set_down(physics, rng, CUBES, positions, YAW_RANGE_DEG)
 
     # --- per cube ----------------------------------------------------------------------
     def pad_distance(self, physics: SoArmPhysics, colour: str) -> float:
@@ -195,49 +188,57 @@ class SortCubesTask(Task):
         """The colours whose cube is not yet sorted, in sorting order."""
         return tuple(colour for colour in COLOURS if not self.is_sorted(physics, colour))
 
-    def _reach(self, physics: SoArmPhysics, cube: str) -> float:
-        """How close the jaws are to ``cube``: horizontally, and in height once more than
+    def _reach_distance(self, physics: SoArmPhysics, cube: str) -> float:
+        """How far the jaws are from ``cube``: horizontally, and in height once more than
         :data:`REACH_HEADROOM_M` above it (so rising off a placed cube loses nothing)."""
         dx, dy, dz = (physics.grasp_center() - physics.object_position(cube)).tolist()
-        distance = math.hypot(dx, dy, max(abs(dz) - REACH_HEADROOM_M, 0.0))
-        return tolerance(distance, 0.01, REACH_MARGIN_M)
+        return math.hypot(dx, dy, max(abs(dz) - REACH_HEADROOM_M, 0.0))
 
-    def stages(self, physics: SoArmPhysics, colour: str) -> dict[str, float]:
-        """The pick-and-place stages of one unsorted cube, each in [0, 1]."""
+    def _evaluate_cube(self, physics: SoArmPhysics, colour: str) -> dict[str, Any]:
+        """One cube's flags and distances (see :meth:`evaluate`)."""
         cube = cube_name(colour)
         distance = self.pad_distance(physics, colour)
-        if self.on_pad(physics, colour, distance):
-            # On its pad but still touched by a jaw: only letting go is missing.
-            return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACE_ON_PAD_CREDIT}
-        if not physics.grasped(cube):
-            return {
-                "reach": self._reach(physics, cube),
-                "grasp": 0.0,
-                "lift": 0.0,
-                "place": 0.0,
-            }
-        # A held cube over its pad counts as lifted, so lowering it onto the pad loses nothing.
-        lift = 1.0 if distance <= PAD_RADIUS_M else lift_term(physics, cube)
-        near = tolerance(distance, PAD_RADIUS_M / 2, PLACE_MARGIN_M)
-        return {"reach": 1.0, "grasp": 1.0, "lift": lift, "place": PLACE_CARRY_CREDIT * near * lift}
+        on_pad = self.on_pad(physics, colour, distance)
+        is_sorted = on_pad and not physics.touched_by_jaws(cube)
+        return {
+            "sorted": is_sorted,
+            "at_rest": physics.object_speed(cube) < RESTING_SPEED_M_S,
+            "on_pad": on_pad,
+            "pad_distance_m": distance,
+            "grasped": physics.grasped(cube),
+            "height_m": physics.object_height(cube),
+            "reach_distance_m": self._reach_distance(physics, cube),
+        }
 
-    # --- success and reward ----------------------------------------------------------------
-    def is_success(self, physics: SoArmPhysics) -> bool:
-        return all(
-            self.is_sorted(physics, colour)
-            and physics.object_speed(cube_name(colour)) < RESTING_SPEED_M_S
-            for colour in COLOURS
+    @staticmethod
+    def _stages(cube: dict[str, Any]) -> dict[str, float]:
+        """The pick-and-place stages of one unsorted cube (its :meth:`_evaluate_cube`)."""
+        distance = cube["pad_distance_m"]
+        return pick_and_place_terms(
+            on_target=cube["on_pad"],
+            grasped=cube["grasped"],
+            reach_distance_m=cube["reach_distance_m"],
+            lift=lift_progress(cube["height_m"]),
+            over_target=distance <= PAD_RADIUS_M,
+            near_target=tolerance(distance, PAD_RADIUS_M / 2, PLACE_MARGIN_M),
         )
 
-    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
-        if self.is_success(physics) if success is None else success:
-            return dict.fromkeys(self.weights.terms, 1.0)
-        unsorted = self.unsorted(physics)
+    # --- success and reward ----------------------------------------------------------------
+    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
+        cubes = {colour: self._evaluate_cube(physics, colour) for colour in COLOURS}
+        return {
+            "success": all(cube["sorted"] and cube["at_rest"] for cube in cubes.values()),
+            "unsorted": tuple(colour for colour in COLOURS if not cubes[colour]["sorted"]),
+            "cubes": cubes,
+        }
+
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+        unsorted = evaluation["unsorted"]
         terms = {f"{colour}_sorted": float(colour not in unsorted) for colour in COLOURS}
         done = len(COLOURS) - len(unsorted)
         if unsorted:
             # The cube furthest along is the one being worked on (the first on a tie).
-            progress = [self.stages(physics, colour) for colour in unsorted]
+            progress = [self._stages(evaluation["cubes"][colour]) for colour in unsorted]
             # Reaching alone does not count here, so the cube reached for is the first
             # unsorted one until another is held or on its pad.
             current = max(
@@ -250,8 +251,8 @@ class SortCubesTask(Task):
             terms[stage] = (done + current[stage]) / len(COLOURS)
         return terms
 
-    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
-        unsorted = self.unsorted(physics)
+    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
+        unsorted = evaluation["unsorted"]
         return {
             "cubes_sorted": len(COLOURS) - len(unsorted),
             **{

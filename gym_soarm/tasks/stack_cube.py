@@ -29,19 +29,22 @@ from gym_soarm.sim.objects import Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
-    PLACE_CARRY_CREDIT,
-    PLACE_MARGIN_M,
-    RESTING_SPEED_M_S,
+    GRIPPER_POSITION_FIELD,
+    Evaluation,
     RewardWeights,
     Task,
     TaskSpec,
-    lift_term,
-    position_field,
-    quaternion_field,
-    reach_term,
-    tolerance,
+    object_pose_fields,
 )
 from gym_soarm.tasks.cube import CUBE_HALF_M, CUBE_SIZE_M
+from gym_soarm.tasks.rewards import (
+    PLACE_MARGIN_M,
+    RESTING_SPEED_M_S,
+    lift_progress,
+    pick_and_place_terms,
+    reach_distance,
+    tolerance,
+)
 from gym_soarm.tasks.scripted import PlaceExpert
 
 CUBE_MASS_KG = 0.02
@@ -68,8 +71,6 @@ START_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.11, 0.11)
 """Where the cubes' centres start: ((x_min, x_max), (y_min, y_max)), well within reach."""
 START_GAP_M = 0.035
 """Free space between the two cubes' footprints at the start: room for an open jaw."""
-PAN_AXIS_XY_M: tuple[float, float] = (0.0, 0.1888)
-"""Where the shoulder pan axis meets the table (the arm turns about it)."""
 MIN_PAN_DISTANCE_M = 0.115
 """Closest a cube's centre starts to the pan axis: nearer, the arm cannot hold the jaws
 vertical as high as a cube carried over the other one, and the stack would tilt."""
@@ -80,9 +81,6 @@ STACK_RADIUS_M = 0.015
 """How far (horizontally) the red centre may lie from the blue centre on a stack."""
 STACK_HEIGHT_TOL_M = 0.005
 """How far the red cube's bottom may lie from the blue cube's top on a stack."""
-# Share of the place term earned by carrying the held red cube over the blue one, and by a
-# red cube that sits on the blue one but is still held or moving; the release earns the rest.
-PLACE_ON_BLUE_CREDIT = 0.9
 
 
 class StackCubeTask(Task):
@@ -90,11 +88,9 @@ class StackCubeTask(Task):
 
     weights = RewardWeights({"reach": 0.1, "grasp": 0.2, "lift": 0.3, "place": 0.4})
     state_fields: ClassVar = (
-        position_field("red_cube_pos", "red_cube"),
-        quaternion_field("red_cube_quat_wxyz", "red_cube"),
-        position_field("blue_cube_pos", "blue_cube"),
-        quaternion_field("blue_cube_quat_wxyz", "blue_cube"),
-        position_field("gripper_pos", "gripper"),
+        *object_pose_fields(RED_CUBE.name),
+        *object_pose_fields(BLUE_CUBE.name),
+        GRIPPER_POSITION_FIELD,
     )
     goal_pairs: ClassVar = (("red_cube_pos", "blue_cube_pos"),)
     top = RED_CUBE.name
@@ -109,7 +105,7 @@ class StackCubeTask(Task):
         # A disc round the pan axis that keeps every centre MIN_PAN_DISTANCE_M from it (the
         # draw keeps footprint + disc radius + gap between centre and axis).
         footprint = max(item.footprint_radius_m for item in items)
-        near_arm = (*PAN_AXIS_XY_M, MIN_PAN_DISTANCE_M - footprint - START_GAP_M)
+        near_arm = (*constants.PAN_AXIS_XY_M, MIN_PAN_DISTANCE_M - footprint - START_GAP_M)
         spots = placement.draw_beside_arm(
             rng,
             [item.footprint_radius_m for item in items],
@@ -124,19 +120,6 @@ class StackCubeTask(Task):
                 np.array([x, y, constants.TABLE_TOP_Z_M + item.rest_height_m]),
                 placement.yaw_quaternion(yaw),
             )
-
-    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
-        red_position, red_quaternion = physics.object_pose(self.top)
-        blue_position, blue_quaternion = physics.object_pose(self.bottom)
-        return np.concatenate(
-            [
-                red_position,
-                red_quaternion,
-                blue_position,
-                blue_quaternion,
-                physics.gripper_position(),
-            ]
-        )
 
     # --- geometry of the stack ---------------------------------------------------------
     def stack_target(self, physics: SoArmPhysics) -> np.ndarray:
@@ -159,37 +142,37 @@ class StackCubeTask(Task):
         red_bottom = physics.object_height(self.top) + constants.TABLE_TOP_Z_M
         return abs(red_bottom - blue_top) <= STACK_HEIGHT_TOL_M
 
-    def is_success(self, physics: SoArmPhysics) -> bool:
-        return (
-            self._on_blue(physics, self._offset(physics))
-            and physics.touching(self.top, self.bottom)
-            and not physics.touched_by_jaws(self.top)
-            and not physics.touched_by_jaws(self.bottom)
-            and physics.object_speed(self.top) < RESTING_SPEED_M_S
-            and physics.object_speed(self.bottom) < RESTING_SPEED_M_S
-        )
-
-    def reward_terms(self, physics: SoArmPhysics, success: bool | None = None) -> dict[str, float]:
-        if self.is_success(physics) if success is None else success:
-            return dict.fromkeys(self.weights.terms, 1.0)
+    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
         offset = self._offset(physics)
-        if self._on_blue(physics, offset):
-            # On the blue cube but still held or moving: only the release is missing.
-            return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACE_ON_BLUE_CREDIT}
-        if not physics.grasped(self.top):
-            reach = reach_term(physics, self.top)
-            return {"reach": reach, "grasp": 0.0, "lift": 0.0, "place": 0.0}
-        # A held red cube over the blue one counts as lifted, so lowering it loses nothing.
-        lift = 1.0 if offset <= STACK_RADIUS_M else lift_term(physics, self.top)
-        over_blue = tolerance(offset, STACK_RADIUS_M, PLACE_MARGIN_M)
+        on_blue = self._on_blue(physics, offset)
         return {
-            "reach": 1.0,
-            "grasp": 1.0,
-            "lift": lift,
-            "place": PLACE_CARRY_CREDIT * over_blue * lift,
+            "success": (
+                on_blue
+                and physics.touching(self.top, self.bottom)
+                and not physics.touched_by_jaws(self.top)
+                and not physics.touched_by_jaws(self.bottom)
+                and physics.object_speed(self.top) < RESTING_SPEED_M_S
+                and physics.object_speed(self.bottom) < RESTING_SPEED_M_S
+            ),
+            "on_blue": on_blue,
+            "offset_m": offset,
+            "grasped": physics.grasped(self.top),
+            "height_m": physics.object_height(self.top),
+            "reach_distance_m": reach_distance(physics, self.top),
         }
 
-    def episode_info(self, physics: SoArmPhysics) -> dict[str, Any]:
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+        offset = evaluation["offset_m"]
+        return pick_and_place_terms(
+            on_target=evaluation["on_blue"],
+            grasped=evaluation["grasped"],
+            reach_distance_m=evaluation["reach_distance_m"],
+            lift=lift_progress(evaluation["height_m"]),
+            over_target=offset <= STACK_RADIUS_M,
+            near_target=tolerance(offset, STACK_RADIUS_M, PLACE_MARGIN_M),
+        )
+
+    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
         return {
             "red_cube_pos": physics.object_position(self.top).tolist(),
             "blue_cube_pos": physics.object_position(self.bottom).tolist(),
