@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import importlib.util
 import json
 import logging
 import os
@@ -24,6 +25,7 @@ import pickle
 import signal
 import threading
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -237,6 +239,13 @@ def train(
         raise ValueError(f"out must be a folder; {str(out_path)!r} is a file. Pass a new folder.")
     sb3 = require_sb3()
     _pyplot()  # imported before training, never in the middle of it
+    if progress_bar and importlib.util.find_spec("rich") is None:
+        warnings.warn(
+            "the progress bar needs rich (pip install rich, or the rl extra); training without it.",
+            UserWarning,
+            stacklevel=2,
+        )
+        progress_bar = False
     import torch
 
     # Small networks: one thread is as fast, and several threads slow down badly
