@@ -13,18 +13,9 @@ import json
 from collections.abc import Sequence
 from pathlib import Path
 
+from gym_soarm.cli.options import int_at_least
 from gym_soarm.tasks import get_task, task_names
 from gym_soarm.tasks.suites import EVAL_SEED
-
-
-def _positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an int >= 1; got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected an int >= 1; got {value}")
-    return value
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -42,7 +33,9 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"the task ({', '.join(task_names())}); required with --policy expert, "
         "else the policy's own (another is refused)",
     )
-    parser.add_argument("--episodes", type=_positive, default=50, help="episodes (default 50)")
+    parser.add_argument(
+        "--episodes", type=int_at_least(1), default=50, help="episodes (default 50)"
+    )
     parser.add_argument(
         "--first-seed", type=int, default=EVAL_SEED, help=f"seed of episode 0 (default {EVAL_SEED})"
     )

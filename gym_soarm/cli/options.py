@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 
 from gym_soarm import constants
 from gym_soarm.control import CONTROL_MODES
@@ -17,6 +18,23 @@ def task_selection(text: str) -> str:
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
     return text
+
+
+def int_at_least(minimum: int) -> Callable[[str], int]:
+    """argparse type of an int option that must be ``minimum`` or more (``--steps``)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected an int >= {minimum}; got {text!r}"
+            ) from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"expected an int >= {minimum}; got {value}")
+        return value
+
+    return parse
 
 
 def add_dataset_action_arguments(parser: argparse.ArgumentParser) -> None:

@@ -15,28 +15,9 @@ import logging
 from collections.abc import Sequence
 from typing import Any
 
+from gym_soarm.cli.options import int_at_least
 from gym_soarm.rl.hyperparams import ALGORITHMS
 from gym_soarm.tasks import task_names
-
-
-def _positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an int >= 1; got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected an int >= 1; got {value}")
-    return value
-
-
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an int >= 0; got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an int >= 0; got {value}")
-    return value
 
 
 def _hyperparam(text: str) -> tuple[str, Any]:
@@ -63,20 +44,23 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--task", required=True, help=f"the task: {', '.join(task_names())} (or an alias)"
     )
-    parser.add_argument("--seed", type=_seed, default=0, help="training seed (default 0)")
+    parser.add_argument("--seed", type=int_at_least(0), default=0, help="training seed (default 0)")
     parser.add_argument(
-        "--steps", type=_positive, default=None, help="environment steps (default: the recipe's)"
+        "--steps",
+        type=int_at_least(1),
+        default=None,
+        help="environment steps (default: the recipe's)",
     )
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument(
         "--eval-every",
-        type=_positive,
+        type=int_at_least(1),
         default=None,
         help="environment steps between evaluations on the protocol (default: the recipe's)",
     )
     parser.add_argument(
         "--eval-episodes",
-        type=_positive,
+        type=int_at_least(1),
         default=None,
         help="protocol episodes per evaluation (default: the recipe's)",
     )

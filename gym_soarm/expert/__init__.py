@@ -78,6 +78,8 @@ class EpisodeResult:
     options: dict[str, Any] | None
     success: bool
     steps: int
+    episode_return: float = 0.0
+    """The sum of the episode's rewards (undiscounted)."""
 
 
 def evaluation_resets(
@@ -103,13 +105,14 @@ def run_episode(
     reset = getattr(policy, "reset", None)
     if reset is not None:
         reset()
-    steps = 0
+    steps, total = 0, 0.0
     while True:
-        obs, _reward, terminated, truncated, info = env.step(policy(obs, info))
+        obs, reward, terminated, truncated, info = env.step(policy(obs, info))
         steps += 1
+        total += float(reward)
         if terminated or truncated:
             break
-    return EpisodeResult(seed, options, bool(info["is_success"]), steps)
+    return EpisodeResult(seed, options, bool(info["is_success"]), steps, total)
 
 
 def evaluate(task: str, seeds: int | None = None, **env_kwargs: Any) -> list[EpisodeResult]:

@@ -18,7 +18,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gym_soarm.expert import make_expert
+from gym_soarm.expert import make_expert, run_episode
 from gym_soarm.rl.hyperparams import ALGORITHMS
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
@@ -180,24 +180,10 @@ def score(
     try:
         actor = make_expert(env) if policy is None else policy
         seeds = protocol_seeds(episodes, first_seed)
-        successes, returns, lengths = [], [], []
-        for seed in seeds:
-            obs, info = env.reset(seed=seed)
-            reset = getattr(actor, "reset", None)
-            if reset is not None:
-                reset()
-            total, steps = 0.0, 0
-            while True:
-                obs, reward, terminated, truncated, info = env.step(actor(obs, info))
-                total += float(reward)
-                steps += 1
-                if terminated or truncated:
-                    break
-            successes.append(bool(info["is_success"]))
-            returns.append(total)
-            lengths.append(steps)
+        results = [run_episode(env, actor, seed, None) for seed in seeds]
     finally:
         env.close()
+    successes = [result.success for result in results]
     return {
         "task": get_task(task).name,
         "success_rate": sum(successes) / len(successes),
@@ -205,8 +191,8 @@ def score(
         "first_seed": first_seed,
         "seeds": seeds,
         "successes": successes,
-        "mean_return": statistics.fmean(returns),
-        "mean_steps": statistics.fmean(lengths),
+        "mean_return": statistics.fmean(result.episode_return for result in results),
+        "mean_steps": statistics.fmean(result.steps for result in results),
     }
 
 

@@ -41,10 +41,10 @@ from gym_soarm.rl.evaluation import (
     require_sb3,
     score,
 )
-from gym_soarm.rl.hyperparams import ALGORITHMS, recipe
+from gym_soarm.rl.hyperparams import recipe
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
-from gym_soarm.validation import ArgumentTypeError
+from gym_soarm.validation import check_int
 
 logger = logging.getLogger(__name__)
 
@@ -63,18 +63,6 @@ class TrainResult:
     wall_s: float
     success_rate: float | None
     interrupted: bool
-
-
-def _check_positive(name: str, value: Any) -> int | None:
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise ArgumentTypeError(
-            f"{name} must be an int >= 1; got {value!r} ({type(value).__name__})."
-        )
-    if value < 1:
-        raise ValueError(f"{name} must be an int >= 1; got {value!r}. Pass e.g. {name}=10000.")
-    return int(value)
 
 
 def _pyplot() -> Any:
@@ -215,17 +203,15 @@ def train(
         ValueError: unknown algorithm or task, a non-positive count, ``out`` a file.
         ImportError: Stable-Baselines3 is not installed (names the extra).
     """
-    if algo not in ALGORITHMS:
-        raise ValueError(
-            f"algo must be one of {', '.join(ALGORITHMS)}; got {algo!r}. Pass e.g. --algo ppo."
-        )
     spec = get_task(task)  # ValueError naming the registered tasks
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be an int >= 0; got {seed!r}.")
-    settings = recipe(algo, spec.name)
-    steps = _check_positive("steps", steps) or settings["steps"]
-    eval_every = _check_positive("eval_every", eval_every) or settings["eval_every"]
-    episodes = _check_positive("eval_episodes", eval_episodes) or settings["eval_episodes"]
+    settings = recipe(algo, spec.name)  # ValueError naming the algorithms
+    seed = check_int("seed", seed, 0)
+    # None takes the recipe's value.
+    steps = check_int("steps", settings["steps"] if steps is None else steps, 1)
+    every = settings["eval_every"] if eval_every is None else eval_every
+    eval_every = check_int("eval_every", every, 1)
+    episodes = settings["eval_episodes"] if eval_episodes is None else eval_episodes
+    episodes = check_int("eval_episodes", episodes, 1)
     if hyperparams:
         unknown = sorted(set(hyperparams) - set(settings["algo"]))
         if unknown:
@@ -269,7 +255,7 @@ def train(
                 "format": POLICY_FORMAT,
                 "algo": algo,
                 "task": spec.name,
-                "seed": int(seed),
+                "seed": seed,
                 "steps": steps,
                 "env": env_kwargs,
                 "observation_names": observation_names,
@@ -285,13 +271,13 @@ def train(
     venv = make_vec_env(
         lambda: make_env(spec.name, env_kwargs),
         n_envs=settings["n_envs"],
-        seed=int(seed),
+        seed=seed,
         vec_env_cls=vec_class,
     )
     if settings["normalize"]:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=settings["algo"]["gamma"])
     algo_class = {"ppo": sb3.PPO, "sac": sb3.SAC}[algo]
-    model = algo_class("MlpPolicy", venv, seed=int(seed), device="cpu", **settings["algo"])
+    model = algo_class("MlpPolicy", venv, seed=seed, device="cpu", **settings["algo"])
     title = f"{algo.upper()} on {spec.name}, seed {seed}"
     run = _Run(out_path, spec.name, env_kwargs, episodes, title, model)
 

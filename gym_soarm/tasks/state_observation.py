@@ -28,30 +28,15 @@ from gymnasium import spaces
 
 from gym_soarm import constants
 from gym_soarm.sim.physics import SoArmPhysics
-from gym_soarm.tasks.base import Task
+from gym_soarm.tasks.base import StateField, Task
 
 GRIPPER_FIELD = "gripper_pos"
 """The gripper frame's position: already beside the jaws' centre, so no vector to it."""
 AXES = ("x", "y", "z")
 
 
-def _position_prefix(task: Task, field_name: str) -> tuple[str, int]:
-    """The value prefix (``"cube"``) of a position field and its offset in the task state."""
-    offset = 0
-    for field in task.state_fields:
-        if field.name == field_name:
-            if field.size != 3 or not field.names[0].endswith("_x"):
-                raise ValueError(
-                    f"{type(task).__name__}.goal_pairs names {field_name!r}, which is not a "
-                    "position field (x, y, z); name position fields only."
-                )
-            return field.names[0][:-2], offset
-        offset += field.size
-    known = [f.name for f in task.state_fields]
-    raise ValueError(
-        f"{type(task).__name__}.goal_pairs names {field_name!r}, which is not one of its "
-        f"state fields {known}; fix the pair."
-    )
+def _is_position(field: StateField) -> bool:
+    return field.size == 3 and field.names[0].endswith("_x")
 
 
 class StateObservation:
@@ -63,16 +48,26 @@ class StateObservation:
 
     def __init__(self, task: Task) -> None:
         self._task = task
-        positions: list[tuple[str, int]] = []
+        # Each position field's value prefix ("cube") and offset in the task state.
+        where: dict[str, tuple[str, int] | None] = {}
         offset = 0
         for field in task.state_fields:
-            if field.size == 3 and field.names[0].endswith("_x") and field.name != GRIPPER_FIELD:
-                positions.append((field.names[0][:-2], offset))
+            where[field.name] = (field.names[0][:-2], offset) if _is_position(field) else None
             offset += field.size
+        positions = [at for name, at in where.items() if at is not None and name != GRIPPER_FIELD]
+        for field_name in (name for pair in task.goal_pairs for name in pair):
+            if field_name not in where:
+                raise ValueError(
+                    f"{type(task).__name__}.goal_pairs names {field_name!r}, which is not one "
+                    f"of its state fields {list(where)}; fix the pair."
+                )
+            if where[field_name] is None:
+                raise ValueError(
+                    f"{type(task).__name__}.goal_pairs names {field_name!r}, which is not a "
+                    "position field (x, y, z); name position fields only."
+                )
         self._jaw_to = [start for _, start in positions]
-        self._pairs = [
-            (_position_prefix(task, a), _position_prefix(task, b)) for a, b in task.goal_pairs
-        ]
+        self._pairs = [(where[a], where[b]) for a, b in task.goal_pairs]
         joints = constants.JOINT_NAMES
         names: list[str] = [f"{j}.pos" for j in joints]
         names += [f"{j}.vel" for j in joints]
