@@ -13,7 +13,7 @@ from gym_soarm.sim.objects import Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks.base import Evaluation, RewardWeights, TaskSpec
 from gym_soarm.tasks.cube import CUBE, CUBE_STATE_FIELDS, CubeGridTask
-from gym_soarm.tasks.rewards import LIFT_HEIGHT_M, lift_progress, pick_terms, reach_distance
+from gym_soarm.tasks.rewards import LIFT_HEIGHT_M, lift_progress, pick_progress, pick_terms
 from gym_soarm.tasks.scripted import LiftExpert
 
 
@@ -24,13 +24,10 @@ class LiftTask(CubeGridTask):
     state_fields: ClassVar = CUBE_STATE_FIELDS
 
     def evaluate(self, physics: SoArmPhysics) -> Evaluation:
-        grasped = physics.grasped(self.cube)
-        height = physics.object_height(self.cube)
+        progress = pick_progress(physics, self.cube)
         return {
-            "success": grasped and height >= LIFT_HEIGHT_M,
-            "grasped": grasped,
-            "height_m": height,
-            "reach_distance_m": reach_distance(physics, self.cube),
+            "success": progress["grasped"] and progress["height_m"] >= LIFT_HEIGHT_M,
+            **progress,
         }
 
     def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:

@@ -51,7 +51,7 @@ from gym_soarm.tasks.rewards import (
     RESTING_SPEED_M_S,
     lift_progress,
     pick_and_place_terms,
-    reach_distance,
+    pick_progress,
     tolerance,
 )
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, PlaceExpert
@@ -204,9 +204,7 @@ class PickAndPlaceCylinderTask(Task):
             ),
             "standing_on_pad": standing,
             "pad_distance_m": pad_distance,
-            "grasped": physics.grasped(self.cylinder),
-            "height_m": physics.object_height(self.cylinder),
-            "reach_distance_m": reach_distance(physics, self.cylinder),
+            **pick_progress(physics, self.cylinder),
         }
 
     def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:

@@ -45,7 +45,7 @@ from gym_soarm.tasks.rewards import (
     RESTING_SPEED_M_S,
     lift_progress,
     pick_and_place_terms,
-    reach_distance,
+    pick_progress,
     tolerance,
 )
 from gym_soarm.tasks.scripted import PlaceExpert
@@ -175,9 +175,7 @@ class PlaceInBinTask(Task):
             ),
             "in_bin": in_bin,
             "bin_distance_m": math.hypot(dx, dy),
-            "grasped": physics.grasped(self.cube),
-            "height_m": physics.object_height(self.cube),
-            "reach_distance_m": reach_distance(physics, self.cube),
+            **pick_progress(physics, self.cube),
         }
 
     def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:

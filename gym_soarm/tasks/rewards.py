@@ -52,6 +52,16 @@ def reach_distance(physics: SoArmPhysics, name: str) -> float:
     return norm(physics.grasp_center() - physics.object_position(name))
 
 
+def pick_progress(physics: SoArmPhysics, name: str) -> dict[str, float | bool]:
+    """What the staged reward reads of object ``name``, for a task's evaluation:
+    ``grasped``, ``height_m`` (its bottom above the table) and ``reach_distance_m``."""
+    return {
+        "grasped": physics.grasped(name),
+        "height_m": physics.object_height(name),
+        "reach_distance_m": reach_distance(physics, name),
+    }
+
+
 def reach_closeness(distance_m: float) -> float:
     """The reach term of a jaws-to-object distance: 1 within 1 cm, falling smoothly beyond."""
     return tolerance(distance_m, REACH_BOUND_M, REACH_MARGIN_M)

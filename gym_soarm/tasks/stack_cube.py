@@ -42,7 +42,7 @@ from gym_soarm.tasks.rewards import (
     RESTING_SPEED_M_S,
     lift_progress,
     pick_and_place_terms,
-    reach_distance,
+    pick_progress,
     tolerance,
 )
 from gym_soarm.tasks.scripted import PlaceExpert
@@ -156,9 +156,7 @@ class StackCubeTask(Task):
             ),
             "on_blue": on_blue,
             "offset_m": offset,
-            "grasped": physics.grasped(self.top),
-            "height_m": physics.object_height(self.top),
-            "reach_distance_m": reach_distance(physics, self.top),
+            **pick_progress(physics, self.top),
         }
 
     def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
