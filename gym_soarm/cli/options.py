@@ -7,6 +7,8 @@ from collections.abc import Callable
 
 from gym_soarm import constants
 from gym_soarm.control import CONTROL_MODES
+from gym_soarm.data.replay import REPLAY_TASK
+from gym_soarm.tasks import task_names, task_spellings
 from gym_soarm.tasks.suites import resolve_selection
 from gym_soarm.units import UNITS
 
@@ -65,6 +67,47 @@ def add_dataset_action_arguments(parser: argparse.ArgumentParser) -> None:
         help="what the recorded action is: joint targets (joint_pos), their changes "
         "(joint_delta), the jaws' pose in the robot's base frame (ee_pose) or its changes "
         "(ee_delta) (default joint_pos)",
+    )
+
+
+def add_dataset_scene_arguments(parser: argparse.ArgumentParser) -> None:
+    """How a dataset's joints and scenes are read back (replay and sysid): ``--units``,
+    ``--calibration``, ``--wrist-roll-offset-deg``, ``--task`` and ``--seed``."""
+    parser.add_argument(
+        "--units",
+        choices=UNITS,
+        default=None,
+        help="the dataset's joint units (default: a gym_soarm recording's own, else from robot_type: gym_soarm = radians, "
+        "else lerobot; use lerobot_range for LeRobot's older -100..100 datasets)",
+    )
+    parser.add_argument(
+        "--calibration",
+        default=None,
+        metavar="PATH",
+        help="the recording arm's LeRobot calibration JSON (LeRobot units)",
+    )
+    parser.add_argument(
+        "--wrist-roll-offset-deg",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help="the arm's wrist_roll reading when the model's is at 0 rad (default: the "
+        "recording's own, else 0)",
+    )
+    parser.add_argument(
+        "--task",
+        choices=task_spellings(),
+        default=None,
+        metavar="TASK",
+        help=f"the scene of every episode: {', '.join(task_names())} (default: each "
+        f"episode's recorded task in gym_soarm recordings, else {REPLAY_TASK}: no object "
+        "in the way)",
+    )
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="episode K resets the scene with SEED + K, as the recorder did (default 0)",
     )
 
 

@@ -12,10 +12,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from gym_soarm.cli.options import add_dynamics_argument
-from gym_soarm.data.replay import REPLAY_TASK, plot_replay, replay
-from gym_soarm.tasks import task_names, task_spellings
-from gym_soarm.units import UNITS
+from gym_soarm.cli.options import add_dataset_scene_arguments, add_dynamics_argument
+from gym_soarm.data.replay import plot_replay, replay
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -33,42 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="K",
         help="an episode index to replay; repeat for several (default: every episode)",
     )
-    parser.add_argument(
-        "--units",
-        choices=UNITS,
-        default=None,
-        help="the dataset's joint units (default: a gym_soarm recording's own, else from robot_type: gym_soarm = radians, "
-        "else lerobot; use lerobot_range for LeRobot's older -100..100 datasets)",
-    )
-    parser.add_argument(
-        "--calibration",
-        default=None,
-        metavar="PATH",
-        help="the recording arm's LeRobot calibration JSON (LeRobot units)",
-    )
-    parser.add_argument(
-        "--wrist-roll-offset-deg",
-        type=float,
-        default=None,
-        metavar="DEG",
-        help="the arm's wrist_roll reading when the model's is at 0 rad (default: the "
-        "recording's own, else 0)",
-    )
-    parser.add_argument(
-        "--task",
-        choices=task_spellings(),
-        default=None,
-        metavar="TASK",
-        help=f"the scene of every episode: {', '.join(task_names())} (default: each "
-        f"episode's recorded task in gym_soarm recordings, else {REPLAY_TASK}: no object "
-        "in the way)",
-    )
-    parser.add_argument(
-        "--seed",
-        type=int,
-        default=0,
-        help="episode K resets the scene with SEED + K, as the recorder did (default 0)",
-    )
+    add_dataset_scene_arguments(parser)
     add_dynamics_argument(parser)
     parser.add_argument("--json", default=None, metavar="PATH", help="write the figures as JSON")
     parser.add_argument(

@@ -12,11 +12,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from gym_soarm import constants
-from gym_soarm.data.replay import REPLAY_TASK
+from gym_soarm.cli.options import add_dataset_scene_arguments
 from gym_soarm.data.sysid import DELAYS, FIT_ITERATIONS, fit_dynamics, plot_fit
 from gym_soarm.dynamics import write_dynamics
-from gym_soarm.tasks import task_names, task_spellings
-from gym_soarm.units import UNITS
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -45,37 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="PATH.png",
         help="draw recorded vs simulated joints, before and after the fit (needs matplotlib)",
     )
-    parser.add_argument(
-        "--units",
-        choices=UNITS,
-        default=None,
-        help="the dataset's joint units (default: as the replay detects them)",
-    )
-    parser.add_argument(
-        "--calibration",
-        default=None,
-        metavar="PATH",
-        help="the recording arm's LeRobot calibration JSON (LeRobot units)",
-    )
-    parser.add_argument(
-        "--wrist-roll-offset-deg",
-        type=float,
-        default=None,
-        metavar="DEG",
-        help="the arm's wrist_roll reading when the model's is at 0 rad (default: the "
-        "recording's own, else 0)",
-    )
-    parser.add_argument(
-        "--task",
-        choices=task_spellings(),
-        default=None,
-        metavar="TASK",
-        help=f"the scene of every episode: {', '.join(task_names())} (default: each "
-        f"episode's recorded task in gym_soarm recordings, else {REPLAY_TASK})",
-    )
-    parser.add_argument(
-        "--seed", type=int, default=0, help="with --task, episode K resets with SEED + K"
-    )
+    add_dataset_scene_arguments(parser)
     parser.add_argument(
         "--delays",
         type=int,
