@@ -40,10 +40,11 @@ Giving ``task`` replays every episode in that scene, episode ``k`` reset with
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -388,6 +389,39 @@ def frame_of_steps(steps: int, frames: int, fps: float) -> np.ndarray:
     return np.minimum((k * fps // SIM_FPS).astype(int), frames - 2)
 
 
+@contextlib.contextmanager
+def scene_envs(
+    units: str,
+    wrist_roll_offset_deg: float,
+    calibration: str | os.PathLike[str] | None,
+    dynamics: str | os.PathLike[str] | None = None,
+) -> Iterator[Callable[[str], Any]]:
+    """Environments to replay a dataset in, one per scene: ``env_for(task_name)`` makes
+    one (state observations, the dataset's units) when first asked for it and returns the
+    unwrapped env; all are closed when the block ends."""
+    import gymnasium as gym
+
+    envs: dict[str, Any] = {}
+
+    def env_for(name: str) -> Any:
+        if name not in envs:
+            envs[name] = gym.make(
+                get_task(name).env_id,
+                obs_type="environment_state_agent_pos",
+                units=units,
+                wrist_roll_offset_deg=wrist_roll_offset_deg,
+                calibration=calibration,
+                dynamics=dynamics,
+            )
+        return envs[name].unwrapped
+
+    try:
+        yield env_for
+    finally:
+        for env in envs.values():
+            env.close()
+
+
 def replay(
     root: str | os.PathLike[str],
     episodes: Sequence[int] | None = None,
@@ -420,7 +454,6 @@ def replay(
         ValueError: a bad argument or dataset (nothing is simulated then).
         ImportError: pyarrow is missing.
     """
-    import gymnasium as gym
 
     if task is not None:
         task = get_task(task).name
@@ -435,25 +468,12 @@ def replay(
         dataset, units, calibration, wrist_roll_offset_deg
     )
     scenes = episode_scenes(dataset, task, seed)
-    envs: dict[str, Any] = {}
-    try:
+    with scene_envs(chosen_units, wrist_roll_offset_deg, calibration, dynamics) as env_for:
         replays = []
         for index, (actions, states) in dataset.episodes.items():
             name, episode_seed = scenes[index]
-            if name not in envs:
-                envs[name] = gym.make(
-                    get_task(name).env_id,
-                    obs_type="environment_state_agent_pos",
-                    units=chosen_units,
-                    wrist_roll_offset_deg=wrist_roll_offset_deg,
-                    calibration=calibration,
-                    dynamics=dynamics,
-                )
-            env = envs[name].unwrapped
+            env = env_for(name)
             replays.append(_replay_episode(env, index, actions, states, dataset.fps, episode_seed))
-    finally:
-        for env in envs.values():
-            env.close()
     label = ",".join(dict.fromkeys(name for name, _ in scenes.values()))
     return ReplayReport(
         str(root), chosen_units, dataset.fps, dataset.robot_type, label, tuple(replays)

@@ -59,6 +59,7 @@ from gym_soarm.data.replay import (
     frame_of_steps,
     read_replay_dataset,
     resolve_units,
+    scene_envs,
     start_episode,
 )
 from gym_soarm.dynamics import (
@@ -407,7 +408,6 @@ def fit_dynamics(
             another robot's names, fewer than :data:`MIN_SECONDS` seconds of frames.
         ImportError: pyarrow or the toolbox's dependencies are missing.
     """
-    import gymnasium as gym
 
     started = time.perf_counter()
     if task is not None:
@@ -444,27 +444,16 @@ def fit_dynamics(
     scenes = episode_scenes(dataset, task, seed)
 
     prepared: list[_Episode] = []
-    envs: dict[str, Any] = {}
     models: dict[str, mujoco.MjModel] = {}
-    try:
+    with scene_envs(chosen_units, offset, calibration) as env_for:
         for index, (actions, states) in dataset.episodes.items():
             name, episode_seed = scenes[index]
-            if name not in envs:
-                envs[name] = gym.make(
-                    get_task(name).env_id,
-                    obs_type="environment_state_agent_pos",
-                    units=chosen_units,
-                    wrist_roll_offset_deg=offset,
-                    calibration=calibration,
-                )
-                models[name] = copy.copy(envs[name].unwrapped.physics.model.ptr)
-            env = envs[name].unwrapped
+            env = env_for(name)
+            # The model as made, before any episode: the fit's starting point.
+            model = models.setdefault(name, copy.copy(env.physics.model.ptr))
             prepared.append(
-                _prepare(env, name, models[name], index, actions, states, dataset.fps, episode_seed)
+                _prepare(env, name, model, index, actions, states, dataset.fps, episode_seed)
             )
-    finally:
-        for env in envs.values():
-            env.close()
 
     problem = _Problem(prepared, sysid, threads)
     nominal = problem.parameters(())
