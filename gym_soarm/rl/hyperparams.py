@@ -25,8 +25,13 @@ from __future__ import annotations
 import copy
 from typing import Any
 
+from gym_soarm.tasks import lift_cube, reach_target
+
 ALGORITHMS: tuple[str, ...] = ("ppo", "sac")
 """The algorithms ``python -m gym_soarm.train`` knows."""
+
+REACH = reach_target.SPEC.name
+LIFT = lift_cube.SPEC.name
 
 _STATE_ENV: dict[str, Any] = {
     "obs_type": "state",
@@ -57,8 +62,8 @@ HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "policy_kwargs": {"net_arch": [128, 128]},
             },
         },
-        "ReachTarget-v0": {"steps": 1_000_000, "eval_every": 50_000},
-        "LiftCube-v0": {
+        REACH: {"steps": 1_000_000, "eval_every": 50_000},
+        LIFT: {
             "n_envs": 16,
             "steps": 6_000_000,
             "eval_every": 250_000,
@@ -87,7 +92,7 @@ HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "policy_kwargs": {"net_arch": [128, 128]},
             },
         },
-        "ReachTarget-v0": {"steps": 300_000, "eval_every": 25_000},
+        REACH: {"steps": 300_000, "eval_every": 25_000},
     },
 }
 
