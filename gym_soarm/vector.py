@@ -1,28 +1,38 @@
-"""A native vector environment: N SO-101 simulations stepped by a pool of threads.
+"""A native vector environment: N SO-101 simulations stepped in worker processes.
 
 ``gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point")`` builds a
-:class:`SoArmVectorEnv`. MuJoCo releases the GIL inside ``mj_step`` and while rendering,
-so threads in one process run the simulations in parallel without the pipes and
-pickling of ``AsyncVectorEnv``.
+:class:`SoArmVectorEnv`.
 
-* Environment ``i`` belongs to worker thread ``i % num_threads`` for its whole life: it
-  is stepped, rendered and closed there, so its GL contexts are only ever current on
-  that thread (each renderer makes its context current before every frame).
+* The environments run in ``num_workers`` worker processes (default: one per CPU, at
+  most ``num_envs``), a contiguous block of them in each. One message wakes a worker
+  per step; it steps its whole block and writes observations, rewards, terminations and
+  truncations straight into shared memory, so only the small info dicts travel through
+  its pipe. The actions travel the other way through shared memory too.
+* ``num_workers=0`` keeps every environment in this process, stepped in turn by the
+  caller (no processes; the fastest for one environment).
+* Workers start with ``forkserver`` (or ``spawn``, see :mod:`gym_soarm.processes`), so
+  each owns its OpenGL contexts; a script that makes the vector env runs it under
+  ``if __name__ == "__main__":``.
 * ``reset(seed=s)`` resets environment ``i`` with ``s + i``, as Gymnasium's vector
   environments do, and the episodes are those of N single ``gym.make`` environments,
   bit for bit (the time limit is that of Gymnasium's ``TimeLimit``).
 * Observations and infos are batched as ``SyncVectorEnv`` batches them: a batched
   observation space, and an ``info`` dict of arrays with a ``_key`` mask per key.
 * ``autoreset_mode`` is ``NEXT_STEP`` (default), ``SAME_STEP`` or ``DISABLED``.
+* A worker that dies raises :class:`WorkerDiedError` in the caller and closes the
+  vector env; ``close()`` ends every worker process.
 """
 
 from __future__ import annotations
 
-import os
-import queue
-import threading
+import contextlib
+import ctypes
+import pickle
+import signal
+import traceback
 import weakref
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
+from multiprocessing.connection import Connection, wait
 from typing import Any
 
 import numpy as np
@@ -31,50 +41,24 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from gym_soarm.env import SoArmEnv
+from gym_soarm.infos import INFO_NUMBERS, InfoReader, InfoWriter, merge
+from gym_soarm.processes import START_METHODS, cpu_count, worker_context
+from gym_soarm.validation import check_choice, check_int
 
 _Leaf = tuple[tuple[str, ...], tuple[int, ...], np.dtype]
-_live_vector_envs: weakref.WeakSet[SoArmVectorEnv] = weakref.WeakSet()
-
+_Field = tuple[str, int, tuple[int, ...], str]  # name, byte offset, shape, dtype
 
 TIME_LIMIT_ATTRIBUTE = "_max_episode_steps"
 """What Gymnasium's ``TimeLimit`` calls the step limit; the vector env answers it."""
 
+CLOSE_TIMEOUT_S = 10.0
+"""How long ``close()`` waits for a worker to close its environments before ending it."""
 
-def _close_live_vector_envs() -> None:
-    """At interpreter exit: close every open vector env on its own threads.
-
-    This runs when ``threading`` shuts down, before the ``atexit`` handlers that tear
-    the GL displays down, so each GL context is freed on the thread it is current on.
-    """
-    for vector_env in list(_live_vector_envs):
-        vector_env.close()
+_ALIGN = 64  # byte alignment of each array in the shared block
 
 
-_register_thread_exit = getattr(threading, "_register_atexit", None)
-if _register_thread_exit is not None:
-    _register_thread_exit(_close_live_vector_envs)
-
-
-class _WorkerThread(threading.Thread):
-    """A thread that runs the jobs posted to its inbox, one at a time, in order."""
-
-    def __init__(self, index: int, done: queue.SimpleQueue) -> None:
-        super().__init__(name=f"gym_soarm-vector-{index}", daemon=True)
-        self.inbox: queue.SimpleQueue = queue.SimpleQueue()
-        self._done = done
-
-    def run(self) -> None:
-        while True:
-            job = self.inbox.get()
-            if job is None:
-                return
-            function, argument = job
-            try:
-                function(argument)
-            except BaseException as exc:  # handed to the calling thread, which re-raises
-                self._done.put(exc)
-            else:
-                self._done.put(None)
+class WorkerDiedError(RuntimeError):
+    """A worker process of :class:`SoArmVectorEnv` ended while the caller waited on it."""
 
 
 def _parse_autoreset_mode(mode: AutoresetMode | str) -> AutoresetMode:
@@ -121,12 +105,263 @@ def _get(tree: Any, path: tuple[str, ...]) -> Any:
     return tree
 
 
-def _is_number(value: Any) -> bool:
-    return type(value) in (int, float, bool) or isinstance(value, np.number)
+def _layout(num_envs: int, action_shape: tuple[int, ...], leaves: list[_Leaf]) -> list[_Field]:
+    """Where each shared array lies in the shared block: actions, results, observations."""
+    fields: list[_Field] = []
+    offset = 0
+
+    def add(name: str, shape: tuple[int, ...], dtype: np.dtype | str) -> None:
+        nonlocal offset
+        dtype = np.dtype(dtype)
+        fields.append((name, offset, shape, dtype.str))
+        size = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+        offset += -(-size // _ALIGN) * _ALIGN
+
+    add("actions", (num_envs, *action_shape), np.float64)  # what SoArmEnv.step converts to
+    add("rewards", (num_envs,), np.float64)
+    add("terminations", (num_envs,), np.bool_)
+    add("truncations", (num_envs,), np.bool_)
+    add("infos", (num_envs, INFO_NUMBERS), np.float64)
+    for index, (_, shape, dtype) in enumerate(leaves):
+        add(f"obs{index}", (num_envs, *shape), dtype)
+    return fields
+
+
+def _block_size(fields: list[_Field]) -> int:
+    _, offset, shape, dtype = fields[-1]
+    return max(_ALIGN, offset + int(np.prod(shape, dtype=np.int64)) * np.dtype(dtype).itemsize)
+
+
+def _views(block: Any, fields: list[_Field]) -> dict[str, np.ndarray]:
+    """Numpy arrays over the shared block, one per field of :func:`_layout`."""
+    buffer = memoryview(block).cast("B")
+    return {
+        name: np.ndarray(shape, np.dtype(dtype), buffer=buffer, offset=offset)
+        for name, offset, shape, dtype in fields
+    }
+
+
+class _Block:
+    """Environments ``first, first + 1, ...`` of a vector env, stepped in turn.
+
+    Reads its actions from, and writes its results and observations into, the rows
+    ``first .. first + len(envs) - 1`` of the shared arrays. It runs in a worker process
+    (or in the caller's, with ``num_workers=0``); the batching happens in the caller.
+    """
+
+    def __init__(
+        self,
+        envs: list[SoArmEnv],
+        first: int,
+        arrays: dict[str, np.ndarray],
+        leaves: list[_Leaf],
+        max_episode_steps: int | None,
+        autoreset_mode: AutoresetMode,
+    ) -> None:
+        self.envs = envs
+        self.rows = range(first, first + len(envs))
+        self.arrays = arrays
+        self.paths = [path for path, _, _ in leaves]
+        self.obs = [arrays[f"obs{k}"] for k in range(len(leaves))]
+        self.limit = max_episode_steps
+        self.mode = autoreset_mode
+        self.elapsed = [0] * len(envs)
+        self.needs_reset = [False] * len(envs)
+        self.info_writer = InfoWriter(arrays["infos"], self.rows)
+
+    def _write_obs(self, row: int, obs: Any) -> None:
+        for path, array in zip(self.paths, self.obs, strict=True):
+            array[row] = _get(obs, path)
+
+    def reset(
+        self, seeds: list[int | None], options: dict[str, Any] | None, mask: list[bool] | None
+    ) -> list[dict[str, Any] | None]:
+        infos: list[dict[str, Any] | None] = [None] * len(self.envs)
+        for k, row in enumerate(self.rows):
+            if mask is not None and not mask[k]:
+                continue
+            obs, info = self.envs[k].reset(seed=seeds[k], options=options)
+            self.elapsed[k] = 0
+            self.needs_reset[k] = False
+            self._write_obs(row, obs)
+            infos[k] = info
+        return infos
+
+    def step(self) -> tuple[tuple[Any, ...], dict[int, tuple[Any, dict[str, Any]]]]:
+        """Step every environment; its infos (as :meth:`InfoWriter.write` sends them)
+        and, in ``SAME_STEP``, the ended episodes' last observations and infos keyed by
+        environment index."""
+        actions = self.arrays["actions"]
+        rewards = self.arrays["rewards"]
+        terms = self.arrays["terminations"]
+        truncs = self.arrays["truncations"]
+        infos: list[dict[str, Any]] = []
+        finals: dict[int, tuple[Any, dict[str, Any]]] = {}
+        limit, mode, elapsed = self.limit, self.mode, self.elapsed
+        for k, row in enumerate(self.rows):
+            env = self.envs[k]
+            if mode is AutoresetMode.NEXT_STEP and self.needs_reset[k]:
+                obs, info = env.reset()
+                elapsed[k] = 0
+                rewards[row] = 0.0
+                terms[row] = truncs[row] = False
+                self.needs_reset[k] = False
+            else:
+                obs, reward, terminated, truncated, info = env.step(actions[row])
+                elapsed[k] += 1
+                if limit is not None and elapsed[k] >= limit:
+                    truncated = True
+                rewards[row] = reward
+                terms[row] = terminated
+                truncs[row] = truncated
+                if terminated or truncated:
+                    if mode is AutoresetMode.SAME_STEP:
+                        finals[row] = (obs, info)
+                        obs, info = env.reset()
+                        elapsed[k] = 0
+                    else:
+                        self.needs_reset[k] = True
+            self._write_obs(row, obs)
+            infos.append(info)
+        return self.info_writer.write(infos), finals
+
+    def call(self, name: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> list[Any]:
+        results = []
+        for env in self.envs:
+            attribute = getattr(env, name)
+            results.append(attribute(*args, **kwargs) if callable(attribute) else attribute)
+        return results
+
+    def get_attr(self, name: str) -> list[Any]:
+        return [getattr(env, name) for env in self.envs]
+
+    def set_attr(self, name: str, values: list[Any]) -> None:
+        for env, value in zip(self.envs, values, strict=True):
+            setattr(env, name, value)
+
+    def close(self) -> None:
+        for env in self.envs:
+            env.close()
+
+
+def _portable(exc: BaseException) -> BaseException:
+    """``exc`` if it survives pickling, else a RuntimeError with its text."""
+    try:
+        pickle.loads(pickle.dumps(exc))
+    except Exception:  # any failure to pickle: send the text instead
+        return RuntimeError(f"{type(exc).__name__}: {exc}")
+    return exc
+
+
+def _make_envs(count: int, env_kwargs: dict[str, Any]) -> list[SoArmEnv]:
+    envs: list[SoArmEnv] = []
+    try:
+        for _ in range(count):
+            envs.append(SoArmEnv(**env_kwargs))
+    except BaseException:
+        for env in envs:
+            env.close()
+        raise
+    return envs
+
+
+def _worker_main(
+    conn: Connection,
+    block: Any,
+    fields: list[_Field],
+    leaves: list[_Leaf],
+    first: int,
+    count: int,
+    spec: Any,
+    env_kwargs: dict[str, Any],
+    max_episode_steps: int | None,
+    autoreset_mode: AutoresetMode,
+) -> None:
+    """A worker process: build ``count`` environments, then serve the caller's commands.
+
+    Each command ``(name, args)`` is a method of :class:`_Block`; the reply is
+    ``("ok", result)`` or ``("error", exception, traceback text)``. ``"close"`` closes
+    the environments, replies and ends the process.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the caller's to handle
+    from gym_soarm.tasks import register_task, task_names
+
+    envs: list[SoArmEnv] = []
+    try:
+        if spec.name not in task_names():
+            register_task(spec)  # a task registered by the caller's own code
+        envs = _make_envs(count, env_kwargs)
+        runner = _Block(
+            envs, first, _views(block, fields), leaves, max_episode_steps, autoreset_mode
+        )
+    except Exception as exc:  # handed to the caller, which raises it
+        conn.send(("error", _portable(exc), traceback.format_exc()))
+        return
+    conn.send(("ok", None))
+    try:
+        while True:
+            try:
+                name, args = conn.recv()
+            except EOFError:
+                return  # the caller went away
+            if name == "close":
+                runner.close()
+                conn.send(("ok", None))
+                return
+            try:
+                result = getattr(runner, name)(*args)
+            except Exception as exc:  # handed to the caller, which raises it
+                conn.send(("error", _portable(exc), traceback.format_exc()))
+            else:
+                conn.send(("ok", result))
+    finally:
+        runner.close()
+
+
+class _Worker:
+    """One worker process, its pipe and the rows of the environments it holds."""
+
+    def __init__(self, index: int, rows: range, process: Any, conn: Connection) -> None:
+        self.index = index
+        self.rows = rows
+        self.process = process
+        self.conn = conn
+
+    def describe(self) -> str:
+        first, last = self.rows[0], self.rows[-1]
+        envs = f"environment {first}" if first == last else f"environments {first}-{last}"
+        return f"worker process {self.index} (pid {self.process.pid}, {envs})"
+
+
+def _stop_workers(workers: list[_Worker], timeout: float) -> None:
+    """Ask every worker to close its environments, wait up to ``timeout``, then kill."""
+    for worker in workers:
+        if worker.process.is_alive():
+            with contextlib.suppress(OSError, ValueError):
+                worker.conn.send(("close", ()))
+    for worker in workers:
+        with contextlib.suppress(OSError, EOFError, ValueError):
+            if worker.process.is_alive() and worker.conn.poll(timeout):
+                worker.conn.recv()
+        worker.process.join(timeout)
+        if worker.process.is_alive():
+            worker.process.kill()
+            worker.process.join()
+        worker.conn.close()
+
+
+def _exit_text(exitcode: int | None) -> str:
+    if exitcode is None:
+        return "an unknown status"
+    if exitcode < 0:
+        with contextlib.suppress(ValueError):
+            return f"signal {signal.Signals(-exitcode).name}"
+        return f"signal {-exitcode}"
+    return f"exit code {exitcode}"
 
 
 class SoArmVectorEnv(VectorEnv):
-    """``num_envs`` :class:`~gym_soarm.env.SoArmEnv` simulations stepped by worker threads.
+    """``num_envs`` :class:`~gym_soarm.env.SoArmEnv` simulations stepped in worker processes.
 
     Made by ``gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point")``;
     every keyword that ``gym.make`` takes for the id is passed to each environment.
@@ -137,16 +372,20 @@ class SoArmVectorEnv(VectorEnv):
             ``TimeLimit`` does (``make_vec`` passes the id's limit); None for no limit.
         autoreset_mode: ``"NextStep"`` (default), ``"SameStep"`` or ``"Disabled"``, or a
             :class:`gymnasium.vector.AutoresetMode`.
-        num_threads: worker threads (default: the number of CPUs, at most ``num_envs``).
-            Environment ``i`` always runs on thread ``i % num_threads``.
+        num_workers: worker processes (default: the CPUs this process may use, at most
+            ``num_envs``; 0 where that is one). Worker ``w`` holds a contiguous block of
+            the environments, the first blocks one larger when they do not divide
+            evenly. 0 steps every environment in this process.
+        start_method: ``"forkserver"`` (default where available) or ``"spawn"``.
         copy: return fresh observation arrays on every call (default). With False the
-            same arrays are filled again by the next call.
+            same (shared) arrays are filled again by the next call.
         **env_kwargs: the arguments of :class:`~gym_soarm.env.SoArmEnv` (``task``,
             ``obs_type``, ``observation_height`` ...).
 
     Raises:
-        ValueError: a bad ``num_envs``, ``num_threads``, ``autoreset_mode`` or
-            environment argument.
+        ValueError: a bad ``num_envs``, ``num_workers``, ``autoreset_mode``,
+            ``start_method`` or environment argument (checked in this process, before
+            any worker starts).
     """
 
     def __init__(
@@ -154,47 +393,28 @@ class SoArmVectorEnv(VectorEnv):
         num_envs: int,
         max_episode_steps: int | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-        num_threads: int | None = None,
+        num_processes: int | None = None,
+        start_method: str | None = None,
         copy: bool = True,
         **env_kwargs: Any,
     ) -> None:
-        if (
-            isinstance(num_envs, bool)
-            or not isinstance(num_envs, (int, np.integer))
-            or num_envs < 1
-        ):
-            raise ValueError(f"num_envs must be an int >= 1; got {num_envs!r}.")
-        if num_threads is None:
-            num_threads = min(int(num_envs), os.cpu_count() or 1)
-        if (
-            isinstance(num_threads, bool)
-            or not isinstance(num_threads, (int, np.integer))
-            or num_threads < 1
-        ):
-            raise ValueError(f"num_threads must be an int >= 1 or None; got {num_threads!r}.")
-        if max_episode_steps is not None and (
-            isinstance(max_episode_steps, bool)
-            or not isinstance(max_episode_steps, (int, np.integer))
-            or max_episode_steps < 1
-        ):
-            raise ValueError(
-                f"max_episode_steps must be an int >= 1 or None; got {max_episode_steps!r}."
-            )
+        self.closed = True  # until every worker is up
+        self._workers: list[_Worker] = []
+        num_envs = check_int("num_envs", num_envs, 1)
+        if num_processes is None:
+            num_processes = cpu_count()
+        num_processes = min(check_int("num_processes", num_processes, 1), num_envs)
+        if max_episode_steps is not None:
+            max_episode_steps = check_int("max_episode_steps", max_episode_steps, 1)
+        if start_method is not None:
+            check_choice("start_method", start_method, START_METHODS)
         self.autoreset_mode = _parse_autoreset_mode(autoreset_mode)
-        self.num_envs = int(num_envs)
+        self.num_envs = num_envs
         self.copy = bool(copy)
         self.max_episode_steps = max_episode_steps
-        self.closed = False
-        self.envs: list[SoArmEnv] = []
-        self._threads: list[_WorkerThread] = []
-        try:
-            for _ in range(self.num_envs):
-                self.envs.append(SoArmEnv(**env_kwargs))
-        except BaseException:
-            for env in self.envs:
-                env.close()
-            raise
-        first = self.envs[0]
+
+        # The first environment checks every argument here and gives the spaces.
+        first = SoArmEnv(**env_kwargs)
         self.metadata = dict(SoArmEnv.metadata)
         self.metadata["autoreset_mode"] = self.autoreset_mode
         self.render_mode = first.render_mode
@@ -202,178 +422,169 @@ class SoArmVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.single_observation_space = first.observation_space
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-
         self._leaves = _leaves(self.single_observation_space)
-        self._buffers = self._new_buffers()
-        self._rewards = np.zeros(self.num_envs, dtype=np.float64)
-        self._terminations = np.zeros(self.num_envs, dtype=np.bool_)
-        self._truncations = np.zeros(self.num_envs, dtype=np.bool_)
-        self._autoreset_envs = np.zeros(self.num_envs, dtype=np.bool_)
-        self._elapsed = [0] * self.num_envs
-        self._all_true = np.ones(self.num_envs, dtype=np.bool_)
-        self._infos: list[dict[str, Any] | None] = [None] * self.num_envs
-        self._final: list[tuple[Any, dict[str, Any]] | None] = [None] * self.num_envs
-        self._actions: np.ndarray | None = None
-        self._seeds: list[int | None] = [None] * self.num_envs
-        self._options: dict[str, Any] | None = None
-        self._reset_mask: np.ndarray | None = None
-        self._started = False
+        fields = _layout(num_envs, self.single_action_space.shape, self._leaves)
 
-        # Environment i always runs on partition i % T. Without cameras nothing is bound
-        # to a thread, so the calling thread steps partition 0 itself (no hand-off);
-        # with cameras every partition has a worker thread of its own, which holds the
-        # GL contexts of its environments.
-        num_threads = min(int(num_threads), self.num_envs)
-        partitions = [list(range(t, self.num_envs, num_threads)) for t in range(num_threads)]
-        renders = bool(first.cameras) or self.render_mode is not None
-        self._caller_partition: list[int] = [] if renders else partitions.pop(0)
-        self._partitions = partitions
-        self._done: queue.SimpleQueue = queue.SimpleQueue()
-        self._threads = [_WorkerThread(t, self._done) for t in range(len(partitions))]
-        for thread in self._threads:
-            thread.start()
-        _live_vector_envs.add(self)
+        # Block sizes differ by one at most; this process takes a smallest one, as it
+        # also batches the results.
+        sizes = sorted(len(b) for b in np.array_split(np.arange(num_envs), num_processes))
+        context = None
+        if num_processes > 1:
+            context = worker_context(start_method, preload=[__name__])
+            self._block_memory: Any = context.RawArray(ctypes.c_uint8, _block_size(fields))
+        else:
+            self._block_memory = bytearray(_block_size(fields))
+        self._arrays = _views(self._block_memory, fields)
+        try:
+            envs = [first, *_make_envs(sizes[0] - 1, env_kwargs)]
+        except BaseException:
+            first.close()
+            raise
+        self._local = _Block(
+            envs, 0, self._arrays, self._leaves, max_episode_steps, self.autoreset_mode
+        )
+        self._rows = [self._local.rows]
+        if context is not None:
+            try:
+                self._start_workers(context, sizes[1:], fields, first.task_spec, env_kwargs)
+            except BaseException:
+                self._local.close()
+                raise
+        self._finalizer = weakref.finalize(self, _stop_workers, self._workers, CLOSE_TIMEOUT_S)
+        self._info_reader = InfoReader(self._arrays["infos"], self._rows)
+
+        self._obs_arrays = [self._arrays[f"obs{k}"] for k in range(len(self._leaves))]
+        self._autoreset_envs = np.zeros(self.num_envs, dtype=np.bool_)
+        self._all_true = np.ones(self.num_envs, dtype=np.bool_)
+        self._started = False
+        self.closed = False
+
+    def _start_workers(
+        self,
+        context: Any,
+        sizes: list[int],
+        fields: list[_Field],
+        spec: Any,
+        env_kwargs: dict[str, Any],
+    ) -> None:
+        first = self._local.rows.stop
+        try:
+            for index, size in enumerate(sizes):
+                conn, child = context.Pipe()
+                process = context.Process(
+                    target=_worker_main,
+                    name=f"gym_soarm-vector-{index}",
+                    args=(
+                        child,
+                        self._block_memory,
+                        fields,
+                        self._leaves,
+                        first,
+                        size,
+                        spec,
+                        env_kwargs,
+                        self.max_episode_steps,
+                        self.autoreset_mode,
+                    ),
+                    daemon=True,
+                )
+                process.start()
+                child.close()
+                self._workers.append(_Worker(index + 1, range(first, first + size), process, conn))
+                self._rows.append(range(first, first + size))
+                first += size
+            self._collect("start")
+        except BaseException:
+            _stop_workers(self._workers, 1.0)
+            self._workers.clear()
+            raise
 
     @property
-    def num_threads(self) -> int:
-        """The number of threads that step environments (the calling one included)."""
-        return len(self._threads) + bool(self._caller_partition)
+    def num_processes(self) -> int:
+        """The processes that step environments: this one and the workers."""
+        return 1 + len(self._workers)
 
-    # --- batching ----------------------------------------------------------------------
-    def _new_buffers(self) -> list[np.ndarray]:
-        return [np.empty((self.num_envs, *shape), dtype) for _, shape, dtype in self._leaves]
+    @property
+    def worker_pids(self) -> tuple[int, ...]:
+        """The process ids of the workers, in order (empty with ``num_processes=1``)."""
+        return tuple(int(w.process.pid) for w in self._workers)
 
-    def _write_obs(self, i: int, obs: Any) -> None:
-        for (path, _, _), buffer in zip(self._leaves, self._buffers, strict=True):
-            buffer[i] = _get(obs, path)
-
-    def _batched_obs(self) -> Any:
-        buffers = self._buffers
-        if self.copy:
-            self._buffers = self._new_buffers()
-            for new, old in zip(self._buffers, buffers, strict=True):
-                new[...] = old
-        return _nest({path: b for (path, _, _), b in zip(self._leaves, buffers, strict=True)})
-
-    def _merge_infos(self, infos: Sequence[dict[str, Any] | None]) -> dict[str, Any]:
-        """Batch per-environment infos exactly as ``SyncVectorEnv`` does (``_key`` masks)."""
-        present = [i for i, info in enumerate(infos) if info is not None]
-        if len(present) == self.num_envs:
-            fast = self._merge_same_keys(infos)  # type: ignore[arg-type]
-            if fast is not None:
-                return fast
-        merged: dict[str, Any] = {}
-        for i in present:
-            merged = self._add_info(merged, infos[i], i)  # type: ignore[arg-type]
-        return merged
-
-    def _merge_same_keys(self, infos: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
-        """The batched infos when every env has the same keys and value types, else None.
-
-        Gives what ``SyncVectorEnv``'s per-environment ``_add_info`` gives, with one
-        numpy call per key instead of one assignment per key and environment.
-        """
-        first_info = infos[0]
-        keys = list(first_info)
-        if "final_obs" in first_info:
-            return None  # kept unbatched, as _add_info keeps it
-        for info in infos:
-            if list(info) != keys:
-                return None
-        merged: dict[str, Any] = {}
-        n = self.num_envs
-        ones = self._all_true
-        for key in keys:
-            values = [info[key] for info in infos]
-            first = values[0]
-            kind = type(first)
-            for value in values:
-                if type(value) is not kind:
-                    return None
-            if kind is dict:
-                array: Any = self._merge_same_keys(values)
-                if array is None:
-                    return None
-            elif kind in (bool, int, float) or issubclass(kind, np.number):
-                array = np.array(values, dtype=kind)
-            elif kind is np.ndarray:
-                try:
-                    array = np.array(values, dtype=first.dtype)
-                except ValueError:
-                    return None  # shapes differ
-                if array.shape != (n, *first.shape):
-                    return None
-            elif kind is str:
-                array = np.empty(n, dtype=object)
-                array[:] = values
-            else:
-                return None
-            merged[key] = array
-            merged[f"_{key}"] = ones.copy()
-        return merged
-
-    # --- running jobs on the worker threads --------------------------------------------
-    def _run(self, job: Callable[[list[int]], None]) -> None:
-        """Run ``job(partition)`` on every worker thread and wait; re-raise the first error."""
+    # --- talking to the workers ---------------------------------------------------------
+    def _check_open(self) -> None:
         if self.closed:
             raise RuntimeError(
                 "this vector environment was closed; create a new one with gym.make_vec(...)."
             )
-        for thread, partition in zip(self._threads, self._partitions, strict=True):
-            thread.inbox.put((job, partition))
-        error: BaseException | None = None
-        if self._caller_partition:
-            try:
-                job(self._caller_partition)
-            except BaseException as exc:  # wait for the workers before raising
-                error = exc
-        for _ in self._threads:
-            result = self._done.get()
-            if result is not None and error is None:
-                error = result
+
+    def _ask(self, name: str, args: Sequence[tuple[Any, ...]]) -> list[Any]:
+        """Run ``_Block.<name>(*args[p])`` for every block (this process's is block 0) at
+        once; the results in block order."""
+        self._check_open()
+        for worker, worker_args in zip(self._workers, args[1:], strict=True):
+            with contextlib.suppress(OSError):  # it died: _collect names it
+                worker.conn.send((name, worker_args))
+        try:
+            here = getattr(self._local, name)(*args[0])
+        except Exception:
+            if self._workers:
+                self._collect(name)  # the workers' replies first: the pipes stay in step
+            raise
+        return [here, *self._collect(name)] if self._workers else [here]
+
+    def _collect(self, what: str) -> list[Any]:
+        """Every worker's reply, in order; raise the first error once all have answered."""
+        results: list[Any] = [None] * len(self._workers)
+        place = {worker.index: k for k, worker in enumerate(self._workers)}
+        error: tuple[BaseException, str] | None = None
+        dead: _Worker | None = None
+        pending = list(self._workers)
+        while pending:
+            ready = set(wait([w.conn for w in pending] + [w.process.sentinel for w in pending]))
+            still = []
+            for worker in pending:
+                if worker.conn not in ready and worker.process.sentinel not in ready:
+                    still.append(worker)
+                    continue
+                try:
+                    reply = worker.conn.recv() if worker.conn.poll() else None
+                except (EOFError, OSError):
+                    reply = None
+                if reply is None:
+                    if worker.process.is_alive():
+                        still.append(worker)  # the sentinel fired first; the reply follows
+                        continue
+                    dead = dead or worker
+                elif reply[0] == "ok":
+                    results[place[worker.index]] = reply[1]
+                elif error is None:
+                    error = (reply[1], reply[2])
+            pending = still
+            if dead is not None:
+                break
+        if dead is not None:
+            dead.process.join(1.0)
+            text = (
+                f"{dead.describe()} died with {_exit_text(dead.process.exitcode)} during "
+                f"{what}(); the vector environment is closed. Create a new one with "
+                "gym.make_vec(...)."
+            )
+            self.close()
+            raise WorkerDiedError(text)
         if error is not None:
-            raise error
+            exc, text = error
+            if hasattr(exc, "add_note"):
+                exc.add_note(f"raised in a vector env worker process:\n{text}")
+            raise exc
+        return results
 
-    def _reset_job(self, partition: list[int]) -> None:
-        mask = self._reset_mask
-        for i in partition:
-            if mask is not None and not mask[i]:
-                continue
-            obs, info = self.envs[i].reset(seed=self._seeds[i], options=self._options)
-            self._elapsed[i] = 0
-            self._write_obs(i, obs)
-            self._infos[i] = info
+    def _split(self, values: Sequence[Any]) -> list[list[Any]]:
+        """``values`` (one per environment) cut into each block's share."""
+        return [list(values[rows.start : rows.stop]) for rows in self._rows]
 
-    def _step_job(self, partition: list[int]) -> None:
-        envs, actions, elapsed, limit = (
-            self.envs,
-            self._actions,
-            self._elapsed,
-            self.max_episode_steps,
-        )
-        rewards, terms, truncs = self._rewards, self._terminations, self._truncations
-        mode = self.autoreset_mode
-        for i in partition:
-            env = envs[i]
-            if mode is AutoresetMode.NEXT_STEP and self._autoreset_envs[i]:
-                obs, info = env.reset()
-                elapsed[i] = 0
-                rewards[i] = 0.0
-                terms[i] = truncs[i] = False
-            else:
-                obs, reward, terminated, truncated, info = env.step(actions[i])  # type: ignore[index]
-                elapsed[i] += 1
-                if limit is not None and elapsed[i] >= limit:
-                    truncated = True
-                rewards[i] = reward
-                terms[i] = terminated
-                truncs[i] = truncated
-                if mode is AutoresetMode.SAME_STEP and (terminated or truncated):
-                    self._final[i] = (obs, info)
-                    obs, info = env.reset()
-                    elapsed[i] = 0
-            self._write_obs(i, obs)
-            self._infos[i] = info
+    # --- batching ----------------------------------------------------------------------
+    def _batched_obs(self) -> Any:
+        arrays = [a.copy() for a in self._obs_arrays] if self.copy else self._obs_arrays
+        return _nest({path: a for (path, _, _), a in zip(self._leaves, arrays, strict=True)})
 
     # --- Gymnasium API -------------------------------------------------------------------
     def reset(
@@ -393,6 +604,7 @@ class SoArmVectorEnv(VectorEnv):
         Returns:
             The batched observations and infos of the environments that were reset.
         """
+        self._check_open()
         if seed is None:
             seeds: list[int | None] = [None] * self.num_envs
         elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
@@ -413,15 +625,16 @@ class SoArmVectorEnv(VectorEnv):
                     f"options['reset_mask'] must be a bool array of shape ({self.num_envs},) "
                     f"with at least one True; got {mask!r}."
                 )
-        self._seeds, self._options, self._reset_mask = seeds, options, mask
-        self._infos = [None] * self.num_envs
-        self._run(self._reset_job)
-        reset = np.ones(self.num_envs, np.bool_) if mask is None else mask
-        self._terminations[reset] = False
-        self._truncations[reset] = False
+        shares = self._split(seeds)
+        masks = self._split(mask.tolist()) if mask is not None else [None] * len(shares)
+        args = [(share, options, part) for share, part in zip(shares, masks, strict=True)]
+        infos = [info for part in self._ask("reset", args) for info in part]
+        reset = self._all_true if mask is None else mask
+        self._arrays["terminations"][reset] = False
+        self._arrays["truncations"][reset] = False
         self._autoreset_envs[reset] = False
         self._started = True
-        return self._batched_obs(), self._merge_infos(self._infos)
+        return self._batched_obs(), merge(infos, self._all_true, self._add_info)
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every environment with its row of ``actions`` (shape ``(num_envs, 6)``).
@@ -432,7 +645,13 @@ class SoArmVectorEnv(VectorEnv):
             reset instead (reward 0, not terminated or truncated, its reset info). With
             ``SAME_STEP`` it is reset at once and ``info["final_obs"]`` and
             ``info["final_info"]`` hold the last observation and info of the episode.
+
+        Raises:
+            ValueError: actions of another shape, or not finite numbers (nothing is
+                stepped).
+            WorkerDiedError: a worker process ended; the vector env is closed.
         """
+        self._check_open()
         if not self._started:
             raise RuntimeError("call reset() before step() on the vector environment.")
         array = np.asarray(actions)
@@ -442,63 +661,74 @@ class SoArmVectorEnv(VectorEnv):
                 f"actions must have shape {expected} (one row of joint targets per "
                 f"environment); got shape {array.shape}."
             )
+        if array.dtype == np.bool_ or not np.issubdtype(array.dtype, np.number):
+            raise ValueError(
+                f"actions must be real numbers of shape {expected}; got dtype {array.dtype}."
+            )
         if self.autoreset_mode is AutoresetMode.DISABLED and self._autoreset_envs.any():
             done = np.flatnonzero(self._autoreset_envs).tolist()
             raise RuntimeError(
                 f"environments {done} ended their episodes and autoreset_mode is DISABLED: "
                 "reset them first with reset(options={'reset_mask': mask})."
             )
-        self._actions = array
-        self._final = [None] * self.num_envs
-        self._run(self._step_job)
-        infos = self._merge_infos(self._infos)
-        if self.autoreset_mode is AutoresetMode.SAME_STEP:
-            for i, final in enumerate(self._final):
-                if final is not None:
-                    infos = self._add_info(
-                        infos, {"final_obs": final[0], "final_info": final[1]}, i
-                    )
-        self._autoreset_envs = np.logical_or(self._terminations, self._truncations)
+        rows = np.ones(self.num_envs, np.bool_)
+        if self.autoreset_mode is AutoresetMode.NEXT_STEP:
+            rows = ~self._autoreset_envs  # those that reset ignore their row
+        finite = np.isfinite(array.reshape(self.num_envs, -1)).all(axis=1)
+        if not finite[rows].all():
+            bad = np.flatnonzero(rows & ~finite).tolist()
+            raise ValueError(
+                f"actions must be finite; the rows of environments {bad} hold NaN or inf. "
+                "Nothing was stepped; check the policy's output before stepping."
+            )
+        self._arrays["actions"][...] = array
+        messages = []
+        finals: dict[int, tuple[Any, dict[str, Any]]] = {}
+        for message, part_finals in self._ask("step", [()] * self.num_processes):
+            messages.append(message)
+            finals.update(part_finals)
+        merged = self._info_reader.read(messages, self._add_info)
+        for i in sorted(finals):
+            final_obs, final_info = finals[i]
+            merged = self._add_info(merged, {"final_obs": final_obs, "final_info": final_info}, i)
+        terminations = self._arrays["terminations"].copy()
+        truncations = self._arrays["truncations"].copy()
+        self._autoreset_envs = terminations | truncations
         return (
             self._batched_obs(),
-            np.copy(self._rewards),
-            np.copy(self._terminations),
-            np.copy(self._truncations),
-            infos,
+            self._arrays["rewards"].copy(),
+            terminations,
+            truncations,
+            merged,
         )
 
     def render(self) -> tuple[Any, ...] | None:
-        """Each environment's ``render()``, rendered on its own worker thread."""
+        """Each environment's ``render()``, rendered in its own worker."""
         if self.render_mode is None:
             return None
         return tuple(self.call("render"))
 
     def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
-        """Call ``name`` (a method, or read an attribute) of every environment on its thread.
+        """Call ``name`` (a method, or read an attribute) of every environment in its worker.
 
         ``_max_episode_steps`` answers the step limit, as a ``TimeLimit``-wrapped env
-        made by ``gym.make`` does (LeRobot's evaluation reads it this way).
+        made by ``gym.make`` does (LeRobot's evaluation reads it this way). Arguments
+        and results travel between processes, so they must pickle.
 
         Returns:
             One result per environment, in order.
         """
         if name == TIME_LIMIT_ATTRIBUTE:
             return self.get_attr(name)
-        results: list[Any] = [None] * self.num_envs
-
-        def job(partition: list[int]) -> None:
-            for i in partition:
-                attribute = getattr(self.envs[i], name)
-                results[i] = attribute(*args, **kwargs) if callable(attribute) else attribute
-
-        self._run(job)
-        return tuple(results)
+        shares = [(name, args, kwargs)] * self.num_processes
+        return tuple(r for part in self._ask("call", shares) for r in part)
 
     def get_attr(self, name: str) -> tuple[Any, ...]:
         """The attribute ``name`` of every environment, in order."""
         if name == TIME_LIMIT_ATTRIBUTE:
             return (self.max_episode_steps,) * self.num_envs
-        return tuple(getattr(env, name) for env in self.envs)
+        shares = [(name,)] * self.num_processes
+        return tuple(r for part in self._ask("get_attr", shares) for r in part)
 
     def set_attr(self, name: str, values: list[Any] | tuple[Any, ...] | Any) -> None:
         """Set ``name`` on every environment: one value each, or the same value for all."""
@@ -509,37 +739,19 @@ class SoArmVectorEnv(VectorEnv):
                 f"values must hold one value per environment (num_envs={self.num_envs}); "
                 f"got {len(values)}."
             )
-        for env, value in zip(self.envs, values, strict=True):
-            setattr(env, name, value)
+        self._ask("set_attr", [(name, share) for share in self._split(values)])
 
     def close_extras(self, **kwargs: Any) -> None:
-        """Close every environment on its own worker thread, then stop the threads."""
-        if self._threads or self._caller_partition:
-
-            def job(partition: list[int]) -> None:
-                for i in partition:
-                    self.envs[i].close()
-
-            try:
-                self._run(job)
-            finally:
-                for thread in self._threads:
-                    thread.inbox.put(None)
-                for thread in self._threads:
-                    if thread is not threading.current_thread():
-                        thread.join()
-                self._threads = []
-        else:
-            for env in self.envs:
-                env.close()
-        _live_vector_envs.discard(self)
+        """Close every environment (each in its worker), then end the worker processes."""
+        self._local.close()
+        self._finalizer()  # _stop_workers, once
 
     def close(self, **kwargs: Any) -> None:
-        """Close all environments (their GL contexts on their own threads); idempotent."""
+        """Close all environments and end every worker process; idempotent."""
         if self.closed:
             return
-        self.close_extras(**kwargs)
         self.closed = True
+        self.close_extras(**kwargs)
 
 
-__all__ = ["SoArmVectorEnv"]
+__all__ = ["SoArmVectorEnv", "WorkerDiedError"]

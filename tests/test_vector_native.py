@@ -1,8 +1,10 @@
-"""The native thread-pool vector env against N single environments, bit for bit."""
+"""The native vector env (worker processes) against N single environments, bit for bit."""
 
 from __future__ import annotations
 
-import threading
+import os
+import signal
+import time
 from typing import Any
 
 import gymnasium as gym
@@ -12,7 +14,7 @@ from conftest import SMALL
 from gymnasium.vector import AutoresetMode
 
 import gym_soarm
-from gym_soarm.vector import SoArmVectorEnv
+from gym_soarm.vector import SoArmVectorEnv, WorkerDiedError
 
 ENV_ID = "gym_soarm/LiftCube-v0"
 STATE = {"obs_type": "environment_state_agent_pos"}
@@ -44,7 +46,12 @@ def assert_same(a: Any, b: Any, where: str = "") -> None:
 
 
 def compare_with_sync(
-    num_envs: int, steps: int, seed: int, mode: AutoresetMode, **kwargs: Any
+    num_envs: int,
+    steps: int,
+    seed: int,
+    mode: AutoresetMode,
+    num_processes: int | None = None,
+    **kwargs: Any,
 ) -> list[np.ndarray]:
     """Step the native and the synchronous vector envs with the same actions; return
     the done flags of each step."""
@@ -53,6 +60,7 @@ def compare_with_sync(
         num_envs=num_envs,
         vectorization_mode="vector_entry_point",
         autoreset_mode=mode,
+        num_processes=num_processes,
         **kwargs,
     )
     sync = gym.make_vec(
@@ -105,27 +113,127 @@ def test_pixels_match_single_envs_bit_for_bit():
     assert sum(d.all() for d in dones) == 2
 
 
-def test_each_env_renders_on_one_thread():
-    envs = gym.make_vec(
-        ENV_ID, num_envs=3, vectorization_mode="vector_entry_point", num_threads=2, **SMALL
+def test_uneven_blocks_over_two_processes_match_single_envs_bit_for_bit():
+    # 5 environments in 2 processes: this one steps 2, the worker 3.
+    dones = compare_with_sync(
+        5, 30, 11, AutoresetMode.SAME_STEP, max_episode_steps=7, num_processes=2, **STATE
     )
-    inner = envs.unwrapped
-    seen: list[set[str]] = [set() for _ in range(3)]
+    assert sum(d.all() for d in dones) == 4
 
-    def job(partition: list[int]) -> None:
-        for i in partition:
-            seen[i].add(threading.current_thread().name)
 
+def test_every_environment_in_this_process_matches_single_envs_bit_for_bit():
+    dones = compare_with_sync(
+        3, 25, 2, AutoresetMode.NEXT_STEP, max_episode_steps=6, num_processes=1, **STATE
+    )
+    assert sum(d.all() for d in dones) >= 3
+
+
+def test_infos_that_change_layout_mid_run_batch_as_sync_does():
+    # With randomised physics a reset's info adds a "variation" dict. Environments
+    # reset at different steps (a reset mask staggers them), so in next-step mode some
+    # send reset infos while the others send step infos, within one worker too.
+    kwargs = {"max_episode_steps": 4, "physics_randomization": "light", **STATE}
+    native = gym.make_vec(
+        ENV_ID, num_envs=4, vectorization_mode="vector_entry_point", num_processes=2, **kwargs
+    )
+    sync = gym.make_vec(ENV_ID, num_envs=4, vectorization_mode="sync", **kwargs)
+    mixed = 0
     try:
-        envs.reset(seed=0)
-        for _ in range(3):
-            envs.step(np.zeros((3, 6), np.float32))
-            inner._run(job)  # the same partitions as reset and step
+        assert_same(native.reset(seed=8), sync.reset(seed=8), "reset")
+        zeros = np.zeros((4, 6), np.float32)
+        assert_same(native.step(zeros), sync.step(zeros), "step 0")
+        mask = {"reset_mask": np.array([True, False, False, True])}
+        assert_same(native.reset(seed=9, options=mask), sync.reset(seed=9, options=mask), "mask")
+        for t in range(12):
+            actions = np.full((4, 6), 0.05 * t, np.float32)
+            got = native.step(actions)
+            assert_same(got, sync.step(actions), f"step {t}")
+            present = got[4].get("_variation", np.zeros(4, bool))
+            mixed += bool(present.any() and not present.all())
+    finally:
+        native.close()
+        sync.close()
+    assert mixed >= 2
+
+
+def test_cameras_render_in_the_worker_processes():
+    envs = gym.make_vec(
+        ENV_ID, num_envs=3, vectorization_mode="vector_entry_point", num_processes=2, **SMALL
+    )
+    single = gym.make(ENV_ID, **SMALL)
+    try:
+        inner = envs.unwrapped
+        assert inner.num_processes == 2 and len(inner.worker_pids) == 1
+        assert inner.worker_pids[0] != os.getpid()
+        obs, _ = envs.reset(seed=4)
+        want, _ = single.reset(seed=6)  # the worker's environment 2
         frames = envs.call("render_camera_image", "front_camera")
         assert all(frame.shape == (48, 64, 3) for frame in frames)
-        assert seen == [{"gym_soarm-vector-0"}, {"gym_soarm-vector-1"}, {"gym_soarm-vector-0"}]
+        assert np.array_equal(frames[2], single.unwrapped.render_camera_image("front_camera"))
+        assert np.array_equal(obs["pixels"]["front_camera"][2], want["pixels"]["front_camera"])
+        assert obs["pixels"]["front_camera"][2].std() > 5.0  # a real picture
     finally:
         envs.close()
+        single.close()
+
+
+def test_attributes_and_calls_reach_every_process():
+    envs = SoArmVectorEnv(3, num_processes=2, task="LiftCube-v0", **STATE)
+    try:
+        assert envs.get_attr("control_mode") == ("joint_pos",) * 3
+        assert envs.get_attr("_max_episode_steps") == (None,) * 3
+        envs.set_attr("custom_tag", ["a", "b", "c"])
+        assert envs.get_attr("custom_tag") == ("a", "b", "c")
+        envs.set_attr("custom_tag", 7)
+        assert envs.call("custom_tag") == (7, 7, 7)
+        with pytest.raises(AttributeError, match="no_such_method"):
+            envs.call("no_such_method")
+        envs.reset(seed=0)  # the error left every process in step
+        envs.step(np.zeros((3, 6), np.float32))
+    finally:
+        envs.close()
+
+
+def test_non_finite_actions_are_refused_before_anything_steps():
+    envs = SoArmVectorEnv(2, num_processes=2, task="LiftCube-v0", **STATE)
+    reference = SoArmVectorEnv(2, num_processes=1, task="LiftCube-v0", **STATE)
+    try:
+        envs.reset(seed=3)
+        reference.reset(seed=3)
+        bad = np.zeros((2, 6), np.float32)
+        bad[1, 2] = np.nan
+        with pytest.raises(ValueError, match=r"environments \[1\]"):
+            envs.step(bad)
+        with pytest.raises(ValueError, match="real numbers"):
+            envs.step(np.full((2, 6), "x"))
+        good = np.full((2, 6), 0.1, np.float32)
+        assert_same(envs.step(good), reference.step(good), "after the refused steps")
+    finally:
+        envs.close()
+        reference.close()
+
+
+def test_a_worker_that_dies_raises_a_clear_error_and_leaves_no_process():
+    envs = SoArmVectorEnv(4, num_processes=2, task="LiftCube-v0", **STATE)
+    envs.reset(seed=0)
+    (pid,) = envs.worker_pids
+    os.kill(pid, signal.SIGKILL)
+    with pytest.raises(
+        WorkerDiedError, match=r"pid \d+, environments 2-3\) died with signal SIGKILL"
+    ):
+        envs.step(np.zeros((4, 6), np.float32))
+    assert envs.closed
+    with pytest.raises(RuntimeError, match="closed"):
+        envs.step(np.zeros((4, 6), np.float32))
+    assert not _alive(pid)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
 
 
 def test_disabled_mode_and_reset_mask():
@@ -155,19 +263,34 @@ def test_disabled_mode_and_reset_mask():
         envs.close()
 
 
-def test_close_closes_every_env_and_thread():
-    envs = gym.make_vec(ENV_ID, num_envs=3, vectorization_mode="vector_entry_point", **SMALL)
+def test_close_closes_every_env_and_ends_every_worker():
+    envs = gym.make_vec(
+        ENV_ID, num_envs=4, vectorization_mode="vector_entry_point", num_processes=2, **SMALL
+    )
     envs.reset(seed=0)
     inner = envs.unwrapped
-    threads = list(inner._threads)
-    assert threads
+    pids = inner.worker_pids
+    assert len(pids) == 1 and _alive(pids[0])
     envs.close()
     assert envs.closed
-    assert all(env._closed for env in inner.envs)
-    assert not any(thread.is_alive() for thread in threads)
+    assert all(env._closed for env in inner._local.envs)
+    deadline = time.monotonic() + 5.0
+    while any(_alive(pid) for pid in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(_alive(pid) for pid in pids)
     envs.close()  # idempotent
     with pytest.raises(RuntimeError, match="closed"):
-        envs.step(np.zeros((3, 6), np.float32))
+        envs.step(np.zeros((4, 6), np.float32))
+
+
+def test_an_unclosed_vector_env_ends_its_workers_when_collected():
+    envs = SoArmVectorEnv(2, num_processes=2, task="LiftCube-v0", **STATE)
+    (pid,) = envs.worker_pids
+    del envs
+    import gc
+
+    gc.collect()
+    assert not _alive(pid)
 
 
 def test_bad_arguments_name_what_was_expected():
@@ -175,6 +298,12 @@ def test_bad_arguments_name_what_was_expected():
         SoArmVectorEnv(0, **STATE)
     with pytest.raises(ValueError, match="autoreset_mode"):
         SoArmVectorEnv(1, autoreset_mode="sometimes", **STATE)
+    with pytest.raises(ValueError, match="num_processes"):
+        SoArmVectorEnv(2, num_processes=0, **STATE)
+    with pytest.raises(ValueError, match="start_method"):
+        SoArmVectorEnv(2, start_method="fork", **STATE)
+    with pytest.raises(ValueError, match="obs_type"):
+        SoArmVectorEnv(2, num_processes=2, obs_type="telepathy")  # before any worker starts
     envs = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="vector_entry_point", **STATE)
     try:
         with pytest.raises(RuntimeError, match="reset"):

@@ -26,7 +26,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--seconds", type=float, default=1.0, help="seconds per measurement")
     parser.add_argument("--rounds", type=int, default=3, help="alternating rounds (medians)")
-    parser.add_argument("--threads", type=int, default=None, help="native env's threads")
+    parser.add_argument(
+        "--processes", type=int, default=None, help="native env's processes (default: CPUs)"
+    )
     parser.add_argument("--json", default=None, help="write the figures to this file")
     args = parser.parse_args(argv)
     try:
@@ -46,7 +48,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             (height, width),
             args.seconds,
             args.rounds,
-            args.threads,
+            args.processes,
             modes,
         )
     except ValueError as exc:

@@ -6,7 +6,7 @@ measures it; ``python -m gym_soarm.tools.bench_vector`` runs it alone). For each
 baseline) and as each vector env:
 
 * ``native``: ``gym.make_vec(..., vectorization_mode="vector_entry_point")``, the
-  threads of :class:`gym_soarm.vector.SoArmVectorEnv`;
+  worker processes of :class:`gym_soarm.vector.SoArmVectorEnv` (one per CPU);
 * ``async``: ``gymnasium.vector.AsyncVectorEnv``, one process per environment
   (``forkserver`` context);
 * ``sync``: ``gymnasium.vector.SyncVectorEnv``, every environment in turn in this thread.
@@ -50,7 +50,7 @@ def env_kwargs(obs: str, size: tuple[int, int] = DEFAULT_SIZE) -> dict[str, Any]
 
 
 def make_vector(
-    env_id: str, num_envs: int, mode: str, kwargs: dict[str, Any], num_threads: int | None = None
+    env_id: str, num_envs: int, mode: str, kwargs: dict[str, Any], num_processes: int | None = None
 ) -> gym.vector.VectorEnv:
     """A vector env of ``mode`` (one of :data:`VECTOR_MODES`) over ``num_envs`` environments.
 
@@ -62,7 +62,7 @@ def make_vector(
             env_id,
             num_envs=num_envs,
             vectorization_mode="vector_entry_point",
-            num_threads=num_threads,
+            num_processes=num_processes,
             **kwargs,
         )
     if mode == "async":
@@ -113,7 +113,7 @@ def measure(
     size: tuple[int, int] = DEFAULT_SIZE,
     seconds: float = 1.0,
     rounds: int = 3,
-    num_threads: int | None = None,
+    num_processes: int | None = None,
     modes: Sequence[str] = VECTOR_MODES,
 ) -> dict[str, Any]:
     """Steps/s of one env and of each vector env of ``modes`` at each ``num_envs``.
@@ -145,7 +145,7 @@ def measure(
             rates: dict[str, list[float]] = {"single": []} | {m: [] for m in modes}
             try:
                 for mode in modes:
-                    vectors[mode] = make_vector(env_id, n, mode, kwargs, num_threads)
+                    vectors[mode] = make_vector(env_id, n, mode, kwargs, num_processes)
                     vectors[mode].reset(seed=0)
                     vectors[mode].step(batches[0])  # warm up (GL contexts, pipes)
                 order = ["single", *modes]
@@ -179,7 +179,7 @@ def measure(
         "obs": obs,
         "size": list(size) if obs != "state" else None,
         "modes": list(modes),
-        "num_threads": num_threads,
+        "num_processes": num_processes,
         "seconds": seconds,
         "rounds": rounds,
         "cpus": os.cpu_count(),
