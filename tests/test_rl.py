@@ -79,6 +79,24 @@ def test_train_save_reload_and_evaluate(tmp_path, algo):
     assert written["seeds"] == [1000, 1001] and written["episodes"] == 2
 
 
+@pytest.mark.parametrize("algo", ALGORITHMS)
+def test_the_native_vector_env_trains_exactly_as_sb3s_own(tmp_path, algo):
+    # The same seeds give the same episodes in gym_soarm's worker processes as in SB3's
+    # DummyVecEnv, so the same run learns the very same weights.
+    import torch
+
+    weights = {}
+    for vec_env in ("native", "dummy"):
+        out = tmp_path / vec_env
+        train(algo, "reach", out, seed=3, steps=SMOKE[algo]["steps"] // 2, eval_every=10**6,
+              eval_episodes=1, hyperparams=SMOKE[algo]["hyperparams"], vec_env=vec_env)  # fmt: skip
+        assert read_settings(out)["recipe"]["vec_env"] == vec_env
+        weights[vec_env] = TrainedPolicy(out).model.policy.state_dict()
+    assert weights["native"].keys() == weights["dummy"].keys()
+    for key, value in weights["native"].items():
+        assert torch.equal(value, weights["dummy"][key]), key
+
+
 def test_evaluate_the_expert_on_the_protocol(tmp_path):
     report = tmp_path / "expert.json"
     done = _cli(
@@ -125,6 +143,8 @@ def test_train_refuses_bad_values_in_python(tmp_path):
         train("ppo", "reach", tmp_path / "b", steps=0)
     with pytest.raises(ValueError, match="NoSuch"):
         train("ppo", "NoSuch-v0", tmp_path / "c")
+    with pytest.raises(ValueError, match="vec_env must be one of 'native'"):
+        train("ppo", "reach", tmp_path / "d", vec_env="threads")
     (tmp_path / "file").write_text("x")
     with pytest.raises(ValueError, match="is a file"):
         train("ppo", "reach", tmp_path / "file")

@@ -64,8 +64,9 @@ def test_a_suite_gives_one_vector_env_per_task_in_its_group():
     [
         ("environment_state_agent_pos", 2, True, "SoArmVectorEnv"),
         ("environment_state_agent_pos", 1, True, "SyncVectorEnv"),
-        ("pixels_agent_pos", 2, True, "AsyncVectorEnv"),
-        ("pixels_agent_pos", 2, False, "SyncVectorEnv"),
+        ("pixels_agent_pos", 2, True, "SoArmVectorEnv"),
+        ("pixels_agent_pos", 2, False, "SoArmVectorEnv"),
+        ("pixels_agent_pos", 1, True, "SyncVectorEnv"),
     ],
 )
 def test_auto_picks_the_fastest_vector_env_measured(obs_type, n_envs, use_async_envs, expected):

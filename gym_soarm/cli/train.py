@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from gym_soarm.cli.options import int_at_least
-from gym_soarm.rl.hyperparams import ALGORITHMS
+from gym_soarm.rl.hyperparams import ALGORITHMS, VEC_ENVS
 from gym_soarm.tasks import task_names
 
 
@@ -74,6 +74,13 @@ def build_parser() -> argparse.ArgumentParser:
         "learning_starts=100 (Python literals)",
     )
     parser.add_argument(
+        "--vec-env",
+        choices=VEC_ENVS,
+        default=None,
+        help="how the environments are stepped: native (one process per CPU), dummy (this "
+        "process) or subproc (one process each); default: the recipe's (native)",
+    )
+    parser.add_argument(
         "--no-progress", action="store_true", help="no progress bar (e.g. in log files)"
     )
     return parser
@@ -96,6 +103,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             eval_episodes=args.eval_episodes,
             progress_bar=not args.no_progress,
             hyperparams=dict(args.hyperparams),
+            vec_env=args.vec_env,
         )
     except (ValueError, ImportError) as exc:
         raise SystemExit(f"python -m gym_soarm.train: error: {exc}") from None

@@ -108,12 +108,12 @@ class SoArmEnvConfig(EnvConfig):
             ``"joint_delta"``, ``"ee_delta"`` or ``"ee_pose"`` (see
             :mod:`gym_soarm.control`); six values in every mode.
         vector_env: how ``create_envs`` batches ``n_envs`` environments: ``"native"``
-            (gym_soarm's threaded vector env, :class:`gym_soarm.vector.SoArmVectorEnv`),
-            ``"async"`` (Gymnasium's ``AsyncVectorEnv``, one process per environment),
-            ``"sync"`` (``SyncVectorEnv``), or ``"auto"`` (default), the fastest measured
-            on two cores (README, "Vector envs and recording at scale"): native with
-            state observations, LeRobot's own choice with cameras (``AsyncVectorEnv``
-            under ``--eval.use_async_envs``, its default), sync for one environment.
+            (gym_soarm's vector env on worker processes,
+            :class:`gym_soarm.vector.SoArmVectorEnv`), ``"async"`` (Gymnasium's
+            ``AsyncVectorEnv``, one process per environment), ``"sync"``
+            (``SyncVectorEnv``), or ``"auto"`` (default): the fastest measured on two
+            cores (README, "Vector envs and recording at scale"), native for several
+            environments with or without cameras, sync for one.
         calibration: with LeRobot units, the path of a real SO-101 follower's
             calibration JSON, so the env speaks that arm's values (see
             :mod:`gym_soarm.calibration`); None for the fixed maps.
@@ -244,12 +244,10 @@ class SoArmEnvConfig(EnvConfig):
     ) -> dict[str, dict[int, gym.vector.VectorEnv]]:
         """``{group: {task_index: VectorEnv}}`` of ``n_envs`` environments per selected task.
 
-        With ``vector_env="auto"``: one environment is a ``SyncVectorEnv``; several with
-        state observations step in gym_soarm's native threaded vector env (no pipes:
-        1.4x to 2.4x ``AsyncVectorEnv``'s steps/s on two cores); several with cameras
-        follow ``use_async_envs`` (``lerobot-eval --eval.use_async_envs``, default
-        true): ``AsyncVectorEnv`` renders in separate processes, which on two cores
-        matched the native env at two environments and beat it from four.
+        With ``vector_env="auto"``: one environment is a ``SyncVectorEnv``; several
+        step in gym_soarm's native vector env, one worker process per CPU (with state
+        observations and with cameras it measured faster than ``AsyncVectorEnv`` and
+        ``SyncVectorEnv`` on two cores), whatever ``use_async_envs`` says.
         """
         n_envs = check_int("n_envs", n_envs, 1)
         envs: dict[str, dict[int, gym.vector.VectorEnv]] = {}
@@ -276,12 +274,7 @@ class SoArmEnvConfig(EnvConfig):
         kwargs = self.task_kwargs(item)
         mode = self.vector_env
         if mode == "auto":
-            if n_envs == 1:
-                mode = "sync"
-            elif self.obs_type == "environment_state_agent_pos":
-                mode = "native"
-            else:
-                mode = "async" if use_async_envs else "sync"
+            mode = "sync" if n_envs == 1 else "native"
         if mode == "native":
             return gym.make_vec(
                 env_id,

@@ -8,8 +8,10 @@ its keys (``env`` and ``algo`` are merged key by key). Every recipe learns from
 Keys of a recipe:
 
 * ``env``: keywords of ``gym.make`` (obs type, control mode, ...).
-* ``n_envs``: environments stepped together; ``vec_env``: ``"dummy"`` (one process)
-  or ``"subproc"`` (one process per environment).
+* ``n_envs``: environments stepped together; ``vec_env``: ``"native"`` (gym_soarm's
+  vector env, one process per CPU, :class:`gym_soarm.rl.native.NativeVecEnv`; the
+  fastest measured), ``"dummy"`` (SB3's, in this process) or ``"subproc"`` (SB3's, one
+  process per environment). The episodes are the same in all three.
 * ``torch_threads``: PyTorch's threads (1: small networks gain nothing from more, and
   lose much when other processes share the cores).
 * ``normalize``: running normalisation of observations and rewards (SB3's
@@ -30,6 +32,9 @@ from gym_soarm.tasks import lift_cube, reach_target
 ALGORITHMS: tuple[str, ...] = ("ppo", "sac")
 """The algorithms ``python -m gym_soarm.train`` knows."""
 
+VEC_ENVS: tuple[str, ...] = ("native", "dummy", "subproc")
+"""How a recipe's ``n_envs`` environments are stepped (the ``vec_env`` key)."""
+
 REACH = reach_target.SPEC.name
 LIFT = lift_cube.SPEC.name
 
@@ -44,7 +49,7 @@ HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
         "default": {
             "env": _STATE_ENV,
             "n_envs": 8,
-            "vec_env": "dummy",
+            "vec_env": "native",
             "torch_threads": 1,
             "normalize": True,
             "steps": 2_000_000,
@@ -74,7 +79,7 @@ HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
         "default": {
             "env": _STATE_ENV,
             "n_envs": 4,
-            "vec_env": "dummy",
+            "vec_env": "native",
             "torch_threads": 1,
             "normalize": False,
             "steps": 300_000,

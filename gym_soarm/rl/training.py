@@ -41,10 +41,10 @@ from gym_soarm.rl.evaluation import (
     require_sb3,
     score,
 )
-from gym_soarm.rl.hyperparams import recipe
+from gym_soarm.rl.hyperparams import VEC_ENVS, recipe
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
-from gym_soarm.validation import check_int
+from gym_soarm.validation import check_choice, check_int
 
 logger = logging.getLogger(__name__)
 
@@ -181,6 +181,7 @@ def train(
     eval_episodes: int | None = None,
     progress_bar: bool = False,
     hyperparams: dict[str, Any] | None = None,
+    vec_env: str | None = None,
 ) -> TrainResult:
     """Train ``algo`` on ``task`` with the package's recipe and write its folder.
 
@@ -198,6 +199,9 @@ def train(
         progress_bar: show SB3's progress bar (needs ``rich``/``tqdm``).
         hyperparams: values that replace the recipe's algorithm arguments
             (``{"learning_starts": 100}``); only keys the recipe has.
+        vec_env: how the environments are stepped: ``"native"``, ``"dummy"`` or
+            ``"subproc"`` (default: the recipe's, see :mod:`gym_soarm.rl.hyperparams`);
+            the episodes and so the run are the same in all three.
 
     Raises:
         ValueError: unknown algorithm or task, a non-positive count, ``out`` a file.
@@ -212,6 +216,8 @@ def train(
     eval_every = check_int("eval_every", every, 1)
     episodes = settings["eval_episodes"] if eval_episodes is None else eval_episodes
     episodes = check_int("eval_episodes", episodes, 1)
+    if vec_env is not None:
+        settings["vec_env"] = check_choice("vec_env", vec_env, VEC_ENVS)
     if hyperparams:
         unknown = sorted(set(hyperparams) - set(settings["algo"]))
         if unknown:
@@ -239,7 +245,12 @@ def train(
     torch.set_num_threads(settings["torch_threads"])
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+    from stable_baselines3.common.vec_env import (
+        DummyVecEnv,
+        SubprocVecEnv,
+        VecMonitor,
+        VecNormalize,
+    )
 
     env_kwargs = dict(settings["env"])
     probe = make_env(spec.name, env_kwargs)
@@ -267,13 +278,19 @@ def train(
         + "\n"
     )
 
-    vec_class = SubprocVecEnv if settings["vec_env"] == "subproc" else DummyVecEnv
-    venv = make_vec_env(
-        lambda: make_env(spec.name, env_kwargs),
-        n_envs=settings["n_envs"],
-        seed=seed,
-        vec_env_cls=vec_class,
-    )
+    if settings["vec_env"] == "native":
+        from gym_soarm.rl.native import NativeVecEnv
+
+        venv = VecMonitor(NativeVecEnv(spec.name, env_kwargs, settings["n_envs"]))
+        venv.seed(seed)
+    else:
+        vec_class = SubprocVecEnv if settings["vec_env"] == "subproc" else DummyVecEnv
+        venv = make_vec_env(
+            lambda: make_env(spec.name, env_kwargs),
+            n_envs=settings["n_envs"],
+            seed=seed,
+            vec_env_cls=vec_class,
+        )
     if settings["normalize"]:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=settings["algo"]["gamma"])
     algo_class = {"ppo": sb3.PPO, "sac": sb3.SAC}[algo]

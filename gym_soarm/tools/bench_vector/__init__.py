@@ -15,20 +15,31 @@ They are stepped with random actions from a seeded generator in rounds that take
 of them in turn (so every figure sees the same machine load), and the medians over
 rounds are reported. ``speedup`` is the median over rounds of a vector env's aggregate
 steps/s over the single environment's in the same round.
+
+Each round also measures the *ceiling* of that ``num_envs``: the same environments split
+over one process per CPU as the native env splits them, each process stepping its
+share in turn flat out, with no communication at all. Its speedup over one env is what
+this machine allows: cycling through several simulations in one process costs more
+per step than stepping one (each has its own 5 MB model, so they no longer fit the
+CPU caches), and two cores that share caches and memory, or a busy host, give less than
+2x. ``ratio_to_ceiling`` puts each vector env's speedup against it.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import statistics
 import time
 from collections.abc import Sequence
+from multiprocessing.connection import Connection
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
 import gym_soarm  # noqa: F401  (registers the environments)
+from gym_soarm.processes import cpu_count, worker_context
 from gym_soarm.tools.timings import spread
 
 DEFAULT_ENV_ID = "gym_soarm/LiftCube-v0"
@@ -106,6 +117,81 @@ def vector_rate(envs: gym.vector.VectorEnv, actions: np.ndarray, seconds: float)
     return batches * envs.num_envs / (time.perf_counter() - started)
 
 
+def _free_runner(
+    conn: Connection, env_id: str, kwargs: dict[str, Any], count: int, seed: int
+) -> None:
+    """A ceiling process: on each message ``seconds``, step ``count`` environments in
+    turn flat out for that long; reply their steps/s."""
+    envs = [gym.make(env_id, **kwargs) for _ in range(count)]
+    try:
+        for index, env in enumerate(envs):
+            env.reset(seed=seed + index)
+        low, high = envs[0].action_space.low, envs[0].action_space.high
+        actions = np.random.default_rng(seed).uniform(low, high, (N_ACTIONS, len(low)))
+        actions = actions.astype(np.float32)
+        while True:
+            try:
+                seconds = conn.recv()
+            except EOFError:
+                return
+            if seconds is None:
+                return
+            steps = 0
+            started = time.perf_counter()
+            deadline = started + seconds
+            while time.perf_counter() < deadline or steps == 0:
+                for env in envs:
+                    _, _, terminated, truncated, _ = env.step(actions[steps % N_ACTIONS])
+                    steps += 1
+                    if terminated or truncated:
+                        env.reset()
+            conn.send(steps / (time.perf_counter() - started))
+    finally:
+        for env in envs:
+            env.close()
+
+
+class Ceiling:
+    """``num_envs`` environments split over one process per CPU (at most ``num_envs``),
+    each process stepping its share in turn with no hand-off."""
+
+    def __init__(self, env_id: str, kwargs: dict[str, Any], num_envs: int) -> None:
+        context = worker_context(None, preload=[__name__])
+        shares = np.array_split(np.arange(num_envs), min(num_envs, cpu_count()))
+        self.runners: list[tuple[Any, Connection]] = []
+        try:
+            for share in shares:
+                conn, child = context.Pipe()
+                process = context.Process(
+                    target=_free_runner,
+                    args=(child, env_id, kwargs, len(share), int(share[0])),
+                    daemon=True,
+                )
+                process.start()
+                child.close()
+                self.runners.append((process, conn))
+        except BaseException:
+            self.close()
+            raise
+
+    def rate(self, seconds: float) -> float:
+        """Aggregate steps/s of all processes stepping at once for about ``seconds``."""
+        for _, conn in self.runners:
+            conn.send(seconds)
+        return sum(conn.recv() for _, conn in self.runners)
+
+    def close(self) -> None:
+        for process, conn in self.runners:
+            with contextlib.suppress(OSError):
+                conn.send(None)
+            process.join(10)
+            if process.is_alive():
+                process.kill()
+                process.join()
+            conn.close()
+        self.runners = []
+
+
 def measure(
     env_id: str,
     num_envs: Sequence[int],
@@ -142,33 +228,44 @@ def measure(
         for n in num_envs:
             batches = rng.uniform(low, high, (N_ACTIONS, n, len(low))).astype(np.float32)
             vectors: dict[str, gym.vector.VectorEnv] = {}
-            rates: dict[str, list[float]] = {"single": []} | {m: [] for m in modes}
+            ceiling = Ceiling(env_id, kwargs, n)
+            rates: dict[str, list[float]] = {"single": [], "ceiling": []} | {m: [] for m in modes}
             try:
                 for mode in modes:
                     vectors[mode] = make_vector(env_id, n, mode, kwargs, num_processes)
                     vectors[mode].reset(seed=0)
                     vectors[mode].step(batches[0])  # warm up (GL contexts, pipes)
-                order = ["single", *modes]
+                ceiling.rate(0.05)  # warm up (every process built and stepping)
+                order = ["single", "ceiling", *modes]
                 for round_index in range(rounds):
                     shift = round_index % len(order)  # nobody always goes first
                     for name in order[shift:] + order[:shift]:
                         if name == "single":
                             rates[name].append(single_rate(single, single_actions, seconds))
+                        elif name == "ceiling":
+                            rates[name].append(ceiling.rate(seconds))
                         else:
                             rates[name].append(vector_rate(vectors[name], batches, seconds))
             finally:
                 for envs in vectors.values():
                     envs.close()
+                ceiling.close()
             single_rates.extend(rates["single"])
+            ceiling_per_round = [
+                c / s for c, s in zip(rates["ceiling"], rates["single"], strict=True)
+            ]
             for mode in modes:
+                speedups = [v / s for v, s in zip(rates[mode], rates["single"], strict=True)]
                 rows.append(
                     {
                         "mode": mode,
                         "num_envs": n,
                         "steps_per_s": spread(rates[mode]),
                         "single_steps_per_s": statistics.median(rates["single"]),
-                        "speedup": statistics.median(
-                            v / s for v, s in zip(rates[mode], rates["single"], strict=True)
+                        "speedup": statistics.median(speedups),
+                        "ceiling_speedup": statistics.median(ceiling_per_round),
+                        "ratio_to_ceiling": statistics.median(
+                            v / c for v, c in zip(speedups, ceiling_per_round, strict=True)
                         ),
                     }
                 )
@@ -186,6 +283,7 @@ def measure(
         "load_average_start": load_start,
         "load_average_end": os.getloadavg() if hasattr(os, "getloadavg") else None,
         "single_steps_per_s": statistics.median(single_rates),
+        "ceiling_processes": cpu_count(),
         "rows": rows,
     }
 
@@ -193,7 +291,7 @@ def measure(
 def format_table(report: dict[str, Any]) -> str:
     """One scaling report as a Markdown table: a row per count, a column pair per mode."""
     modes = report["modes"]
-    header = ["num_envs", *(f"{m} steps/s (speedup)" for m in modes)]
+    header = ["num_envs", *(f"{m} steps/s (speedup)" for m in modes), "ceiling speedup"]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     by_key = {(r["mode"], r["num_envs"]): r for r in report["rows"]}
     for n in sorted({r["num_envs"] for r in report["rows"]}):
@@ -201,6 +299,7 @@ def format_table(report: dict[str, Any]) -> str:
         for mode in modes:
             row = by_key[(mode, n)]
             cells.append(f"{row['steps_per_s']['median']:,.0f} ({row['speedup']:.2f}x)")
+        cells.append(f"{by_key[(modes[0], n)]['ceiling_speedup']:.2f}x")
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -214,5 +313,6 @@ def title(report: dict[str, Any]) -> str:
     load_text = "" if load is None else f", load average {load[0]:.1f}"
     return (
         f"{report['env_id']}, {obs}: one env {report['single_steps_per_s']:,.0f} steps/s "
-        f"({report['cpus']} cores{load_text})"
+        f"({report['cpus']} cores{load_text}); ceiling: the environments on "
+        f"{report['ceiling_processes']} free-running processes"
     )

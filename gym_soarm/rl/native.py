@@ -1,0 +1,127 @@
+"""Stable-Baselines3's view of gym_soarm's native vector env (worker processes).
+
+``python -m gym_soarm.train`` steps its environments through :class:`NativeVecEnv` when a
+recipe says ``vec_env="native"`` (the default): the environments of
+:class:`gym_soarm.vector.SoArmVectorEnv` in one process per CPU, seen through SB3's
+``VecEnv`` interface. It gives what SB3's ``DummyVecEnv`` over the same ``gym.make``
+environments gives, bit for bit: the same seeds (environment ``i`` gets ``seed + i``),
+observations, float32 rewards, dones, ``terminal_observation`` and
+``TimeLimit.truncated``; of the task's own info only ``is_success`` is passed on (what
+SB3 reads), which keeps the step free of per-environment dicts.
+
+Needs the ``rl`` extra (``pip install "gym-soarm[rl]"``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from gymnasium.vector import AutoresetMode
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
+
+from gym_soarm.tasks import get_task
+from gym_soarm.vector import SoArmVectorEnv
+
+
+class NativeVecEnv(VecEnv):
+    """``n_envs`` environments of ``task`` in a :class:`~gym_soarm.vector.SoArmVectorEnv`.
+
+    Args:
+        task: a registered task name (``"ReachTarget-v0"``).
+        env_kwargs: the keywords of ``gym.make`` for each environment.
+        n_envs: environments stepped together.
+        num_processes: processes that step them (default: one per CPU).
+    """
+
+    def __init__(
+        self,
+        task: str,
+        env_kwargs: dict[str, Any],
+        n_envs: int,
+        num_processes: int | None = None,
+    ) -> None:
+        spec = get_task(task)
+        self.vector = SoArmVectorEnv(
+            n_envs,
+            max_episode_steps=spec.max_episode_steps,
+            autoreset_mode=AutoresetMode.SAME_STEP,
+            num_processes=num_processes,
+            task=spec.name,
+            **env_kwargs,
+        )
+        super().__init__(
+            n_envs, self.vector.single_observation_space, self.vector.single_action_space
+        )
+        self.metadata = self.vector.metadata
+        self._actions: np.ndarray | None = None
+
+    def reset(self) -> np.ndarray:
+        """Reset every environment with the seeds given to :meth:`seed` (once), else fresh."""
+        options = self._options[0] if self._options and self._options[0] else None
+        obs, _ = self.vector.reset(seed=list(self._seeds), options=options)
+        self.reset_infos = [{} for _ in range(self.num_envs)]
+        self._reset_seeds()
+        self._reset_options()
+        return obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = actions
+
+    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
+        obs, rewards, terminated, truncated, info = self.vector.step(self._actions)
+        dones = terminated | truncated
+        success = info.get("is_success")
+        infos: list[dict[str, Any]] = []
+        for i in range(self.num_envs):
+            entry: dict[str, Any] = {
+                "TimeLimit.truncated": bool(truncated[i] and not terminated[i])
+            }
+            if dones[i]:
+                final_info = info["final_info"]
+                entry["terminal_observation"] = info["final_obs"][i]
+                if "is_success" in final_info:
+                    entry["is_success"] = bool(final_info["is_success"][i])
+            elif success is not None:
+                entry["is_success"] = bool(success[i])
+            infos.append(entry)
+        return obs, rewards.astype(np.float32), dones, infos
+
+    def close(self) -> None:
+        self.vector.close()
+
+    def _indices(self, indices: VecEnvIndices) -> list[int]:
+        return list(self._get_indices(indices))
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        values = self.vector.get_attr(attr_name)
+        return [values[i] for i in self._indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        current = list(self.vector.get_attr(attr_name)) if indices is not None else None
+        if current is None:
+            self.vector.set_attr(attr_name, value)
+            return
+        for i in self._indices(indices):
+            current[i] = value
+        self.vector.set_attr(attr_name, current)
+
+    def env_method(
+        self,
+        method_name: str,
+        *method_args: Any,
+        indices: VecEnvIndices = None,
+        **method_kwargs: Any,
+    ) -> list[Any]:
+        results = self.vector.call(method_name, *method_args, **method_kwargs)
+        return [results[i] for i in self._indices(indices)]
+
+    def env_is_wrapped(self, wrapper_class: type, indices: VecEnvIndices = None) -> list[bool]:
+        return [False for _ in self._indices(indices)]
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        return list(self.vector.call("render"))
+
+
+__all__ = ["NativeVecEnv"]
