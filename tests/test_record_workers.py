@@ -92,8 +92,11 @@ def test_a_worker_killed_mid_episode_costs_a_retry(one_worker, tmp_path):
     try:
         deadline = time.monotonic() + 240
         while killed is None and time.monotonic() < deadline and proc.poll() is None:
-            # A worker is mid-episode while its scratch folder holds an open video segment.
+            # A worker is mid-episode while its scratch folder holds an open video segment
+            # (the recorder's own process plays attempts too: not that one).
             for folder in _worker_dirs(root):
+                if folder.name == f"worker-{proc.pid}":
+                    continue
                 if list((folder / SCRATCH_DIR).glob("*-segment.mp4")):
                     killed = int(folder.name.split("-")[1])
                     os.kill(killed, signal.SIGKILL)

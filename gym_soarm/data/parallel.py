@@ -1,12 +1,19 @@
 """Recording in worker processes: attempts run in parallel, episodes merge in order.
 
-:func:`record_in_workers` starts N local worker processes (``forkserver`` or ``spawn``).
-Each builds its own environment and expert, plays the attempts it is sent and exports
-each episode to a shard (its numbers and one encoded H.264 segment per camera, see
-:meth:`~gym_soarm.data.writer.LeRobotDatasetWriter.export_episode`). This process merges
-the shards into the dataset strictly in attempt order and keeps the first ``episodes``
-kept attempts, so the dataset is the same, frame for frame, whatever the number of
-workers and however they are scheduled.
+:func:`record_in_workers` starts N - 1 local worker processes (``forkserver`` or
+``spawn``) and plays attempts in this process too, so N processes record. Each builds
+its own environment and expert, plays attempts and exports each episode to a shard (its
+numbers and one encoded H.264 segment per camera, see
+:meth:`~gym_soarm.data.writer.LeRobotDatasetWriter.export_episode`); the merge moves the
+segments into the dataset without decoding them. This process merges the shards
+strictly in attempt order and keeps the first ``episodes`` kept attempts, so the
+dataset is the same, frame for frame, whatever the number of workers and however they
+are scheduled.
+
+* A worker is sent attempts only once it has built its environment and said so; until
+  then, and whenever no worker is free, this process plays the next attempt itself. A
+  short recording is therefore never slower than in one process: it is done before
+  the workers are up, and they are stopped.
 
 * A worker that dies (e.g. SIGKILL) is replaced, and its attempt runs again, from its
   seed, in the new worker: no episode is lost or duplicated.
@@ -16,7 +23,6 @@ workers and however they are scheduled.
 from __future__ import annotations
 
 import contextlib
-import multiprocessing
 import os
 import shutil
 import signal
@@ -28,56 +34,85 @@ from typing import Any
 from gym_soarm.data.attempt import FPS, AttemptPlan, record_attempt, write_variation
 from gym_soarm.data.format import SCRATCH_DIR
 from gym_soarm.data.writer import LeRobotDatasetWriter
+from gym_soarm.processes import worker_context
 
 # How many times one attempt may take its worker down before the recording gives up.
 MAX_DEATHS_PER_ATTEMPT = 3
 
 
+class _Player:
+    """An environment, its expert and a scratch dataset: plays attempts into shards."""
+
+    def __init__(self, plan: AttemptPlan, shard_root: Path) -> None:
+        import gymnasium as gym
+
+        from gym_soarm.expert import make_expert
+        from gym_soarm.tasks import register_task, task_names
+
+        self.plan = plan
+        self.shard_root = shard_root
+        self.scratch = shard_root / f"worker-{os.getpid()}"
+        self.env = self.writer = None
+        try:
+            if plan.spec.name not in task_names():
+                register_task(plan.spec)  # a task registered by the parent's own code
+            self.env = gym.make(plan.spec.env_id, **plan.env_kwargs)
+            self.expert = make_expert(self.env)
+            self.writer = LeRobotDatasetWriter.create(
+                self.scratch, FPS, plan.features, robot_type=plan.robot_type, overwrite=True
+            )
+        except BaseException:
+            self.close()
+            raise
+
+    def play(self, attempt: int) -> tuple[bool, str | None, dict[str, Any] | None]:
+        """Play ``attempt``: whether it succeeded, its shard (None: not kept), its draw."""
+        try:
+            success, drawn = record_attempt(self.env, self.expert, self.writer, self.plan, attempt)
+        except BaseException:
+            self.writer.clear_episode_buffer()
+            raise
+        shard = None
+        if success or self.plan.keep == "all":
+            shard = str(self.shard_root / f"attempt-{attempt:07d}")
+            self.writer.export_episode(shard)
+        else:
+            self.writer.clear_episode_buffer()
+        return success, shard, drawn
+
+    def close(self) -> None:
+        if self.env is not None:
+            self.env.close()
+        if self.writer is not None:
+            self.writer.finalize()
+        shutil.rmtree(self.scratch, ignore_errors=True)
+
+
 def _worker_main(conn: Connection, plan: AttemptPlan, shard_root: str) -> None:
     """A worker process: play the attempts received on ``conn`` and export their shards.
 
-    Replies ``("done", attempt, success, shard or None, drawn variation)`` per attempt, or
-    ``("error", text)`` once if something raised (the worker then exits).
+    Says ``("ready",)`` once its environment is built, then replies ``("done", attempt,
+    success, shard or None, drawn variation)`` per attempt, or ``("error", text)`` once
+    if something raised (the worker then exits).
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
-    import gymnasium as gym
-
-    from gym_soarm.expert import make_expert
-    from gym_soarm.tasks import register_task, task_names
-
-    env = writer = None
-    scratch = Path(shard_root) / f"worker-{os.getpid()}"
+    player = None
     try:
-        if plan.spec.name not in task_names():
-            register_task(plan.spec)  # a task registered by the parent's own code
-        env = gym.make(plan.spec.env_id, **plan.env_kwargs)
-        expert = make_expert(env)
-        writer = LeRobotDatasetWriter.create(
-            scratch, FPS, plan.features, robot_type=plan.robot_type, overwrite=True
-        )
+        player = _Player(plan, Path(shard_root))
+        conn.send(("ready",))
         while True:
             attempt = conn.recv()
             if attempt is None:
                 break
-            success, drawn = record_attempt(env, expert, writer, plan, attempt)
-            shard = None
-            if success or plan.keep == "all":
-                shard = str(Path(shard_root) / f"attempt-{attempt:07d}")
-                writer.export_episode(shard)
-            else:
-                writer.clear_episode_buffer()
-            conn.send(("done", attempt, success, shard, drawn))
+            conn.send(("done", attempt, *player.play(attempt)))
     except EOFError:
         pass  # the parent went away
     except BaseException:
         with contextlib.suppress(OSError):
             conn.send(("error", traceback.format_exc()))
     finally:
-        if env is not None:
-            env.close()
-        if writer is not None:
-            writer.finalize()
-        shutil.rmtree(scratch, ignore_errors=True)
+        if player is not None:
+            player.close()
 
 
 class _Slot:
@@ -91,6 +126,7 @@ class _Slot:
         self.process.start()
         child.close()
         self.attempt: int | None = None
+        self.ready = False  # the worker has built its environment
 
     def stop(self, timeout: float) -> None:
         """Ask the worker to finish, then end it if it does not."""
@@ -105,15 +141,9 @@ class _Slot:
 
 
 def _context(start_method: str | None) -> Any:
-    if start_method is None:
-        available = multiprocessing.get_all_start_methods()
-        start_method = "forkserver" if "forkserver" in available else "spawn"
-    context = multiprocessing.get_context(start_method)
-    if start_method == "forkserver":
-        # The fork server imports the recorder (MuJoCo, gymnasium, the tasks) once and
-        # forks every worker from there. It never renders, so the workers may.
-        context.set_forkserver_preload([__name__])
-    return context
+    # The fork server imports the recorder (MuJoCo, gymnasium, the tasks) once and forks
+    # every worker from there. It never renders, so the workers may.
+    return worker_context(start_method, preload=[__name__])
 
 
 class OrderedMerger:
@@ -219,12 +249,15 @@ def record_in_workers(
 ) -> tuple[int, int, bool]:
     """Record attempts ``0, 1, ...`` in ``workers`` processes into ``writer``, in order.
 
+    This process is one of them: it starts ``workers - 1`` worker processes and plays
+    an attempt itself whenever none of them is ready and free.
+
     Args:
         writer: the dataset being written (its scratch folder holds the shards).
         plan: the recording's settings, sent to every worker.
         episodes: episodes to keep.
         max_attempts: attempts to make at most.
-        workers: worker processes.
+        workers: processes that record, this one included (at least 2).
         start_method: ``"forkserver"`` (default where available) or ``"spawn"``.
         bar: a tqdm progress bar to update, or None.
 
@@ -246,9 +279,13 @@ def record_in_workers(
     deaths: dict[int, int] = {}
     interrupted = False
     slots: list[_Slot] = []
+    player: _Player | None = None
+
+    def next_attempt() -> int | None:
+        return retry.pop(0) if retry else merger.take_attempt()
 
     try:
-        slots = [_Slot(context, plan, shard_root) for _ in range(workers)]
+        slots = [_Slot(context, plan, shard_root) for _ in range(workers - 1)]
         while True:
             merger.merge_ready()
             if merger.finished:
@@ -256,25 +293,36 @@ def record_in_workers(
             # Attempts not merged yet never exceed the episodes still needed: no attempt
             # past the last kept one is ever played, whatever the timing.
             for index, slot in enumerate(slots):
-                if slot.attempt is not None:
+                if slot.attempt is not None or not slot.ready:
                     continue
-                attempt = retry.pop(0) if retry else merger.take_attempt()
+                attempt = next_attempt()
                 if attempt is None:
                     break
                 try:
                     slot.conn.send(attempt)
-                except OSError:  # it died while idle: a new worker takes the attempt
+                except OSError:  # it died while idle: a new worker will take attempts
                     slot.stop(0)
-                    slot = slots[index] = _Slot(context, plan, shard_root)
-                    slot.conn.send(attempt)
+                    slots[index] = _Slot(context, plan, shard_root)
+                    retry.append(attempt)
+                    retry.sort()
+                    continue
                 slot.attempt = attempt
-            busy = [slot for slot in slots if slot.attempt is not None]
-            if not busy:
-                raise RuntimeError(
-                    f"no attempt is running and attempt {merger.merged} has no result; "
-                    "expected a worker to be playing it (this is a bug in gym_soarm)."
-                )
-            ready = set(wait([s.conn for s in busy] + [s.process.sentinel for s in busy]))
+            watched = [s.conn for s in slots] + [s.process.sentinel for s in slots]
+            ready = set(wait(watched, timeout=0))
+            if not ready:
+                attempt = next_attempt()
+                if attempt is not None:  # nobody free: this process plays it
+                    if player is None:
+                        player = _Player(plan, shard_root)
+                    success, shard, drawn = player.play(attempt)
+                    merger.add(attempt, success, None if shard is None else Path(shard), drawn)
+                    continue
+                if not any(slot.attempt is not None for slot in slots):
+                    raise RuntimeError(
+                        f"no attempt is running and attempt {merger.merged} has no result; "
+                        "expected a worker to be playing it (this is a bug in gym_soarm)."
+                    )
+                ready = set(wait(watched))
             for index, slot in enumerate(slots):
                 if slot.conn not in ready and slot.process.sentinel not in ready:
                     continue
@@ -286,12 +334,15 @@ def record_in_workers(
                         message = None
                 if message is not None and message[0] == "error":
                     raise RuntimeError(f"a recording worker failed:\n{message[1]}")
+                if message is not None and message[0] == "ready":
+                    slot.ready = True
+                    continue
                 if message is not None:
                     _, attempt, success, shard, drawn = message
                     merger.add(attempt, success, None if shard is None else Path(shard), drawn)
                     slot.attempt = None
                     continue
-                # The worker died mid-attempt: replace it and play the attempt again.
+                # The worker died (mid-attempt or starting): replace it, replay its attempt.
                 slot.process.join()
                 lost = slot.attempt
                 slot.stop(0)
@@ -314,5 +365,7 @@ def record_in_workers(
         merger.merge_finished()  # every finished episode is kept, in attempt order
     finally:
         for slot in slots:
-            slot.stop(0 if interrupted else 5)
+            slot.stop(0 if interrupted or slot.attempt is None else 5)
+        if player is not None:
+            player.close()
     return merger.merged, merger.successes, interrupted
