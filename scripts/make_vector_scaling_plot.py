@@ -5,9 +5,11 @@
     python scripts/make_vector_scaling_plot.py scaling.json [more.json ...] [--out PATH]
 
 Reads the ``vector_scaling`` reports of one or more benchmark JSON files and draws one
-panel per observation type: the speedup of each vector env (native threads,
+panel per observation type: the speedup of each vector env (native worker processes,
 ``AsyncVectorEnv``, ``SyncVectorEnv``) over one environment against ``num_envs`` (log
-scale), with the one-env line and, for state observations, the target of 1.7.
+scale), with the one-env line, the ceiling measured in the same run (the environments
+on one free-running process per CPU, no communication) and, for state observations,
+the target of 1.7.
 Drawn with OpenCV, so it needs nothing beyond gym_soarm's dependencies.
 """
 
@@ -28,8 +30,18 @@ from gym_soarm.tools.bench import VECTOR_SPEEDUP_TARGET
 OUTPUT = Path(__file__).resolve().parents[1] / "docs" / "vector_scaling.png"
 PANEL = (420, 520)  # (height, width) of one panel
 MARGIN = (50, 60, 60, 20)  # top, left, bottom, right of the plotting area
-COLOURS = {"native": (180, 100, 30), "async": (30, 130, 230), "sync": (110, 110, 110)}  # BGR
-LABELS = {"native": "native (threads)", "async": "AsyncVectorEnv", "sync": "SyncVectorEnv"}
+COLOURS = {  # BGR
+    "native": (180, 100, 30),
+    "async": (30, 130, 230),
+    "sync": (110, 110, 110),
+    "ceiling": (90, 170, 90),
+}
+LABELS = {
+    "native": "native (processes)",
+    "async": "AsyncVectorEnv",
+    "sync": "SyncVectorEnv",
+    "ceiling": "ceiling (free-running)",
+}
 STATE_TARGET = VECTOR_SPEEDUP_TARGET
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 INK = (40, 40, 40)
@@ -57,6 +69,7 @@ def panel(report: dict[str, Any]) -> np.ndarray:
     image = np.full((height, width, 3), 255, np.uint8)
     counts = sorted({r["num_envs"] for r in report["rows"]})
     speedups = [r["speedup"] for r in report["rows"]]
+    speedups += [r.get("ceiling_speedup", 0.0) for r in report["rows"]]
     y_max = max(2.0, math.ceil(max(speedups) * 5 + 1) / 5)
     x_lo, x_hi = math.log2(counts[0]), max(math.log2(counts[-1]), math.log2(counts[0]) + 1)
 
@@ -86,13 +99,23 @@ def panel(report: dict[str, Any]) -> np.ndarray:
         for x in range(left, width - right, 12):  # dashed
             cv2.line(image, (x, y), (min(x + 6, width - right), y), colour, 1, cv2.LINE_AA)
         cv2.putText(image, label, (width - right - 90, y - 5), FONT, 0.4, colour, 1, cv2.LINE_AA)
+    first_mode = report["modes"][0]
+    ceiling_rows = sorted(
+        (r for r in report["rows"] if r["mode"] == first_mode and "ceiling_speedup" in r),
+        key=lambda r: r["num_envs"],
+    )
+    lines = [("ceiling", [point(r["num_envs"], r["ceiling_speedup"]) for r in ceiling_rows])]
     for mode in report["modes"]:
         rows = sorted((r for r in report["rows"] if r["mode"] == mode), key=lambda r: r["num_envs"])
-        points = [point(r["num_envs"], r["speedup"]) for r in rows]
+        lines.append((mode, [point(r["num_envs"], r["speedup"]) for r in rows]))
+    for mode, points in lines:
+        if not points:
+            continue
         colour = COLOURS.get(mode, INK)
-        cv2.polylines(image, [np.array(points, np.int32)], False, colour, 2, cv2.LINE_AA)
+        thickness = 1 if mode == "ceiling" else 2
+        cv2.polylines(image, [np.array(points, np.int32)], False, colour, thickness, cv2.LINE_AA)
         for p in points:
-            cv2.circle(image, p, 4, colour, -1, cv2.LINE_AA)
+            cv2.circle(image, p, 3 if mode == "ceiling" else 4, colour, -1, cv2.LINE_AA)
     obs = (
         report["obs"]
         if report["obs"] == "state"
@@ -118,6 +141,8 @@ def draw(reports: Sequence[dict[str, Any]]) -> np.ndarray:
     """Panels side by side above a legend."""
     row = np.hstack([panel(r) for r in reports])
     modes = list(dict.fromkeys(m for r in reports for m in r["modes"]))
+    if any("ceiling_speedup" in row for r in reports for row in r["rows"]):
+        modes.append("ceiling")
     return np.vstack([row, legend(modes, row.shape[1])])
 
 

@@ -86,7 +86,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--vector-scaling",
         default="",
         metavar="COUNTS",
-        help="also measure vector envs (native threads, AsyncVectorEnv, SyncVectorEnv) at "
+        help="also measure vector envs (native processes, AsyncVectorEnv, SyncVectorEnv) at "
         "these comma-separated num_envs, e.g. 1,2,4,8,16, against one env",
     )
     parser.add_argument(

@@ -87,7 +87,8 @@ def build_parser() -> argparse.ArgumentParser:
         type=int,
         default=1,
         metavar="N",
-        help="record attempts in N worker processes; the dataset is the same for any N (default 1)",
+        help="record attempts in N processes (this one and N - 1 workers); the dataset is the "
+        "same for any N (default 1)",
     )
     parser.add_argument(
         "--ray",

@@ -26,6 +26,7 @@ import contextlib
 import os
 import shutil
 import signal
+import threading
 import traceback
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
@@ -58,15 +59,17 @@ class _Player:
                 register_task(plan.spec)  # a task registered by the parent's own code
             self.env = gym.make(plan.spec.env_id, **plan.env_kwargs)
             self.expert = make_expert(self.env)
-            self.writer = LeRobotDatasetWriter.create(
-                self.scratch, FPS, plan.features, robot_type=plan.robot_type, overwrite=True
-            )
         except BaseException:
             self.close()
             raise
 
     def play(self, attempt: int) -> tuple[bool, str | None, dict[str, Any] | None]:
         """Play ``attempt``: whether it succeeded, its shard (None: not kept), its draw."""
+        if self.writer is None:  # made at the first attempt: an unused worker writes nothing
+            self.writer = LeRobotDatasetWriter.create(
+                self.scratch, FPS, self.plan.features, robot_type=self.plan.robot_type,
+                overwrite=True,
+            )  # fmt: skip
         try:
             success, drawn = record_attempt(self.env, self.expert, self.writer, self.plan, attempt)
         except BaseException:
@@ -85,7 +88,7 @@ class _Player:
             self.env.close()
         if self.writer is not None:
             self.writer.finalize()
-        shutil.rmtree(self.scratch, ignore_errors=True)
+            shutil.rmtree(self.scratch, ignore_errors=True)
 
 
 def _worker_main(conn: Connection, plan: AttemptPlan, shard_root: str) -> None:
@@ -138,6 +141,51 @@ class _Slot:
             self.process.kill()
             self.process.join()
         self.conn.close()
+
+
+class _Starter:
+    """Starts the worker processes in a background thread, so this process records
+    meanwhile (starting the first worker waits for the fork server to import the
+    recorder, about a second)."""
+
+    def __init__(self, context: Any, plan: AttemptPlan, shard_root: Path, count: int) -> None:
+        self._lock = threading.Lock()
+        self._started: list[_Slot] = []
+        self._stopped = False
+        self.error: BaseException | None = None
+        self._thread = threading.Thread(
+            target=self._run,
+            args=(context, plan, shard_root, count),
+            name="gym_soarm-recorder-starter",
+            daemon=True,
+        )
+        self._thread.start()
+
+    def _run(self, context: Any, plan: AttemptPlan, shard_root: Path, count: int) -> None:
+        for _ in range(count):
+            try:
+                slot = _Slot(context, plan, shard_root)
+            except Exception as exc:  # handed to the recording loop, which raises it
+                self.error = exc
+                return
+            with self._lock:
+                if self._stopped:
+                    slot.stop(0)
+                    return
+                self._started.append(slot)
+
+    def new_slots(self) -> list[_Slot]:
+        """The workers started since the last call."""
+        with self._lock:
+            started, self._started = self._started, []
+        return started
+
+    def stop(self) -> list[_Slot]:
+        """Start no more workers; the ones started and not yet taken."""
+        with self._lock:
+            self._stopped = True
+            started, self._started = self._started, []
+        return started
 
 
 def _context(start_method: str | None) -> Any:
@@ -284,12 +332,15 @@ def record_in_workers(
     def next_attempt() -> int | None:
         return retry.pop(0) if retry else merger.take_attempt()
 
+    starter = _Starter(context, plan, shard_root, workers - 1)
     try:
-        slots = [_Slot(context, plan, shard_root) for _ in range(workers - 1)]
         while True:
             merger.merge_ready()
             if merger.finished:
                 break
+            slots.extend(starter.new_slots())
+            if starter.error is not None:
+                raise RuntimeError(f"could not start a recording worker: {starter.error}")
             # Attempts not merged yet never exceed the episodes still needed: no attempt
             # past the last kept one is ever played, whatever the timing.
             for index, slot in enumerate(slots):
@@ -364,6 +415,7 @@ def record_in_workers(
         interrupted = True
         merger.merge_finished()  # every finished episode is kept, in attempt order
     finally:
+        slots.extend(starter.stop())
         for slot in slots:
             slot.stop(0 if interrupted or slot.attempt is None else 5)
         if player is not None:

@@ -237,10 +237,11 @@ def record(
         max_attempts: give up on a task after this many of its attempts (default
             ``3 * episodes + 10``).
         progress: show a progress bar on stderr.
-        workers: record the attempts in this many worker processes (each writes its
-            episodes to a shard; this process merges them in attempt order). The
-            dataset is the same, frame for frame, for every worker count; a worker
-            that dies mid-episode costs a retry of that attempt.
+        workers: record the attempts in this many processes: this one and
+            ``workers - 1`` worker processes (each writes its episodes to a shard; this
+            process merges them in attempt order, and plays attempts itself while no
+            worker is free). The dataset is the same, frame for frame, for every worker
+            count; a worker that dies mid-episode costs a retry of that attempt.
         start_method: how workers start: ``"forkserver"`` (default where available) or
             ``"spawn"``.
         ray_address: run the attempts as Ray tasks instead (``pip install

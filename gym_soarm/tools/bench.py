@@ -29,11 +29,12 @@ by ``gymnasium.vector.AsyncVectorEnv``. The cold ``make`` time (an empty model c
 rebuild the meshes and compile) is measured once per visual variant.
 
 ``--vector-scaling 1,2,4,8,16`` adds the scaling of vector environments
-(:mod:`gym_soarm.tools.bench_vector`): aggregate steps/s of the native threaded vector env,
-``AsyncVectorEnv`` and ``SyncVectorEnv`` at each ``num_envs``, and the speedup of each over
-one environment measured in the same rounds; state observations, and the camera configs
-of ``--vector-obs`` at ``--image-size``. Its target (the native env's best
-speedup with state observations at least 1.7) joins the checked targets.
+(:mod:`gym_soarm.tools.bench_vector`): aggregate steps/s of the native vector env (worker
+processes), ``AsyncVectorEnv`` and ``SyncVectorEnv`` at each ``num_envs``, and the speedup
+of each over one environment measured in the same rounds, beside the ceiling of free-running
+processes; state observations, and the camera configs of ``--vector-obs`` at
+``--image-size``. Its targets (the native env's best speedup at ``num_envs`` >= 8: at
+least 1.7 with state observations, 1.8 with cameras) join the checked targets.
 
 ``--recording N`` adds recording throughput (:mod:`gym_soarm.tools.bench_record`):
 episodes per minute of ``LiftCube-v0``'s scripted expert recorded by one process and by
@@ -94,6 +95,8 @@ TARGETS: tuple[tuple[str, str, float, str], ...] = (
 )
 RATIO_TARGET = 0.8  # every pixel configuration against its raw-renderer ceiling
 VECTOR_SPEEDUP_TARGET = 1.7  # the native vector env over one env, state observations
+VECTOR_CAMERA_SPEEDUP_TARGET = 1.8  # the same with cameras
+VECTOR_TARGET_MIN_ENVS = 8  # the targets hold from this many environments
 DEFAULT_IMAGE_SIZE = (96, 128)  # (height, width) of --vector-obs and --recording-cameras
 
 _CONFIG_PATTERN = re.compile(r"^(front_only|front_wrist|all)_(\d+)x(\d+)(?:_(fast|high))?$")
@@ -756,16 +759,24 @@ def check_targets(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def check_scaling_target(scaling: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The scaling target: the native vector env's best speedup over one env, state obs."""
+    """The scaling targets: the native vector env's best speedup over one env at
+    ``num_envs`` >= 8 (or the largest count measured, if smaller), with state
+    observations and with cameras."""
     checks = []
     for report in scaling:
-        rows = [r for r in report.get("rows", []) if r["mode"] == "native" and r["num_envs"] > 1]
-        if report.get("obs") != "state" or not rows:
+        native = [r for r in report.get("rows", []) if r["mode"] == "native"]
+        if not native:
             continue
+        least = min(VECTOR_TARGET_MIN_ENVS, max(r["num_envs"] for r in native))
+        rows = [r for r in native if r["num_envs"] >= least]
+        if not rows:
+            continue
+        state = report.get("obs") == "state"
+        bound = VECTOR_SPEEDUP_TARGET if state else VECTOR_CAMERA_SPEEDUP_TARGET
         best = max(rows, key=lambda r: r["speedup"])
-        checks.append({"config": f"native_vector_state_{best['num_envs']}", "figure": "speedup",
-                       "bound": VECTOR_SPEEDUP_TARGET, "kind": "min", "value": best["speedup"],
-                       "met": best["speedup"] >= VECTOR_SPEEDUP_TARGET})  # fmt: skip
+        name = f"native_vector_{report.get('obs')}_{best['num_envs']}"
+        checks.append({"config": name, "figure": "speedup", "bound": bound, "kind": "min",
+                       "value": best["speedup"], "met": best["speedup"] >= bound})  # fmt: skip
     return checks
 
 
