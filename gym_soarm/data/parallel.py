@@ -11,9 +11,10 @@ dataset is the same, frame for frame, whatever the number of workers and however
 are scheduled.
 
 * A worker is sent attempts only once it has built its environment and said so; until
-  then, and whenever no worker is free, this process plays the next attempt itself. A
-  short recording is therefore never slower than in one process: it is done before
-  the workers are up, and they are stopped.
+  then, and whenever no worker is free, this process plays the next attempt itself.
+  A state-only recording starts its workers only if, after one attempt played here,
+  the attempts left take longer than starting them (:data:`WORKER_START_S`). So a
+  short recording is never slower than in one process.
 
 * A worker that dies (e.g. SIGKILL) is replaced, and its attempt runs again, from its
   seed, in the new worker: no episode is lost or duplicated.
@@ -27,6 +28,7 @@ import os
 import shutil
 import signal
 import threading
+import time
 import traceback
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
@@ -39,6 +41,12 @@ from gym_soarm.processes import worker_context
 
 # How many times one attempt may take its worker down before the recording gives up.
 MAX_DEATHS_PER_ATTEMPT = 3
+
+WORKER_START_S = 1.0
+"""About what starting the workers costs on two cores (the fork server imports the
+recorder, each worker builds its environment). A recording with cameras starts them at
+once; a state-only one, whose attempts take a fraction of a second, first plays one
+attempt here and starts them only if the attempts left take longer than this."""
 
 
 class _Player:
@@ -332,15 +340,16 @@ def record_in_workers(
     def next_attempt() -> int | None:
         return retry.pop(0) if retry else merger.take_attempt()
 
-    starter = _Starter(context, plan, shard_root, workers - 1)
+    starter = None if plan.state_only else _Starter(context, plan, shard_root, workers - 1)
     try:
         while True:
             merger.merge_ready()
             if merger.finished:
                 break
-            slots.extend(starter.new_slots())
-            if starter.error is not None:
-                raise RuntimeError(f"could not start a recording worker: {starter.error}")
+            if starter is not None:
+                slots.extend(starter.new_slots())
+                if starter.error is not None:
+                    raise RuntimeError(f"could not start a recording worker: {starter.error}")
             # Attempts not merged yet never exceed the episodes still needed: no attempt
             # past the last kept one is ever played, whatever the timing.
             for index, slot in enumerate(slots):
@@ -365,8 +374,12 @@ def record_in_workers(
                 if attempt is not None:  # nobody free: this process plays it
                     if player is None:
                         player = _Player(plan, shard_root)
+                    started = time.perf_counter()
                     success, shard, drawn = player.play(attempt)
                     merger.add(attempt, success, None if shard is None else Path(shard), drawn)
+                    left = episodes - merger.kept - 1  # at the least
+                    if starter is None and left * (time.perf_counter() - started) > WORKER_START_S:
+                        starter = _Starter(context, plan, shard_root, workers - 1)
                     continue
                 if not any(slot.attempt is not None for slot in slots):
                     raise RuntimeError(
@@ -415,7 +428,8 @@ def record_in_workers(
         interrupted = True
         merger.merge_finished()  # every finished episode is kept, in attempt order
     finally:
-        slots.extend(starter.stop())
+        if starter is not None:
+            slots.extend(starter.stop())
         for slot in slots:
             slot.stop(0 if interrupted or slot.attempt is None else 5)
         if player is not None:
