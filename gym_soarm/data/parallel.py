@@ -91,6 +91,21 @@ class _Player:
             self.writer.clear_episode_buffer()
         return success, shard, drawn
 
+    def play_into(
+        self, writer: LeRobotDatasetWriter, attempt: int
+    ) -> tuple[bool, int | None, dict[str, Any] | None]:
+        """Play ``attempt`` straight into ``writer`` (no shard): whether it succeeded,
+        its episode index (None: not kept), its draw."""
+        try:
+            success, drawn = record_attempt(self.env, self.expert, writer, self.plan, attempt)
+        except BaseException:
+            writer.clear_episode_buffer()
+            raise
+        if success or self.plan.keep == "all":
+            return success, writer.save_episode(), drawn
+        writer.clear_episode_buffer()
+        return success, None, drawn
+
     def close(self) -> None:
         if self.env is not None:
             self.env.close()
@@ -263,6 +278,32 @@ class OrderedMerger:
         variation its reset drew (or None)."""
         self.results[attempt] = (bool(success), shard, drawn)
 
+    def add_saved(
+        self, attempt: int, success: bool, index: int | None, drawn: dict[str, Any] | None
+    ) -> None:
+        """Note attempt ``attempt``, the next to merge, saved straight into the dataset
+        as episode ``index`` (None: not kept)."""
+        if attempt != self.merged or self.results:
+            raise RuntimeError(
+                f"attempt {attempt} was saved out of order (next to merge: {self.merged}); "
+                "this is a bug in gym_soarm."
+            )
+        self.merged += 1
+        self.successes += success
+        if index is not None:
+            write_variation(self.writer.root, index, self.seed + attempt, drawn, self.task)
+            self.kept += 1
+        self._progress(index is not None)
+
+    def _progress(self, kept: bool) -> None:
+        if self.bar is None:
+            return
+        if kept:
+            self.bar.update(1)
+        self.bar.set_postfix(
+            success=f"{self.successes}/{self.merged}", frames=self.writer.num_frames, on=self.label
+        )
+
     def merge_ready(self) -> None:
         """Merge every result whose predecessors are all merged."""
         while self.merged in self.results and self.kept < self.episodes:
@@ -284,14 +325,7 @@ class OrderedMerger:
             write_variation(self.writer.root, index, self.seed + attempt, drawn, self.task)
             shutil.rmtree(shard, ignore_errors=True)
             self.kept += 1
-            if self.bar is not None:
-                self.bar.update(1)
-        if self.bar is not None:
-            self.bar.set_postfix(
-                success=f"{self.successes}/{self.merged}",
-                frames=self.writer.num_frames,
-                on=self.label,
-            )
+        self._progress(shard is not None)
 
 
 def record_in_workers(
@@ -375,8 +409,13 @@ def record_in_workers(
                     if player is None:
                         player = _Player(plan, shard_root)
                     started = time.perf_counter()
-                    success, shard, drawn = player.play(attempt)
-                    merger.add(attempt, success, None if shard is None else Path(shard), drawn)
+                    if attempt == merger.merged and not merger.results:
+                        # The next to merge: straight into the dataset, no shard.
+                        success, index, drawn = player.play_into(writer, attempt)
+                        merger.add_saved(attempt, success, index, drawn)
+                    else:
+                        success, shard, drawn = player.play(attempt)
+                        merger.add(attempt, success, None if shard is None else Path(shard), drawn)
                     left = episodes - merger.kept - 1  # at the least
                     if starter is None and left * (time.perf_counter() - started) > WORKER_START_S:
                         starter = _Starter(context, plan, shard_root, workers - 1)
