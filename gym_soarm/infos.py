@@ -50,7 +50,8 @@ def flatten(info: dict[str, Any], numbers: list[Any], objects: list[Any]) -> Lay
             layout.append((key, kind, value.dtype.str, value.shape))
         elif kind is dict:
             layout.append((key, kind, flatten(value, numbers, objects)))
-        elif issubclass(kind, (np.number, np.bool_)) and _number_dtype(np.dtype(kind)):
+        elif issubclass(kind, np.number) and _number_dtype(np.dtype(kind)):
+            # (numpy bools are not numpy numbers: Gymnasium batches them as objects)
             numbers.append(value.item())
             layout.append((key, kind))
         else:

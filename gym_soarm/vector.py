@@ -3,13 +3,14 @@
 ``gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point")`` builds a
 :class:`SoArmVectorEnv`.
 
-* The environments run in ``num_workers`` worker processes (default: one per CPU, at
-  most ``num_envs``), a contiguous block of them in each. One message wakes a worker
-  per step; it steps its whole block and writes observations, rewards, terminations and
-  truncations straight into shared memory, so only the small info dicts travel through
+* The environments are split into contiguous blocks over ``num_processes`` processes
+  (default: one per CPU, at most ``num_envs``): this process steps one block itself
+  and each worker process another, at the same time. One message wakes a worker per
+  step; it steps its whole block and writes observations, rewards, terminations,
+  truncations and the numbers of its infos (:mod:`gym_soarm.infos`) straight into
+  shared memory, so only the values of the infos that are not numbers travel through
   its pipe. The actions travel the other way through shared memory too.
-* ``num_workers=0`` keeps every environment in this process, stepped in turn by the
-  caller (no processes; the fastest for one environment).
+* ``num_processes=1`` keeps every environment in this process (no worker at all).
 * Workers start with ``forkserver`` (or ``spawn``, see :mod:`gym_soarm.processes`), so
   each owns its OpenGL contexts; a script that makes the vector env runs it under
   ``if __name__ == "__main__":``.
@@ -146,7 +147,7 @@ class _Block:
 
     Reads its actions from, and writes its results and observations into, the rows
     ``first .. first + len(envs) - 1`` of the shared arrays. It runs in a worker process
-    (or in the caller's, with ``num_workers=0``); the batching happens in the caller.
+    (or in the caller's own); the batching happens in the caller.
     """
 
     def __init__(
@@ -372,10 +373,11 @@ class SoArmVectorEnv(VectorEnv):
             ``TimeLimit`` does (``make_vec`` passes the id's limit); None for no limit.
         autoreset_mode: ``"NextStep"`` (default), ``"SameStep"`` or ``"Disabled"``, or a
             :class:`gymnasium.vector.AutoresetMode`.
-        num_workers: worker processes (default: the CPUs this process may use, at most
-            ``num_envs``; 0 where that is one). Worker ``w`` holds a contiguous block of
-            the environments, the first blocks one larger when they do not divide
-            evenly. 0 steps every environment in this process.
+        num_processes: processes that step the environments, this one included
+            (default: the CPUs this process may use; at most ``num_envs``). Each holds
+            a contiguous block of environments, the sizes differing by one at most;
+            this process takes a smallest block (it also batches the results), the
+            worker processes the others. 1 steps every environment in this process.
         start_method: ``"forkserver"`` (default where available) or ``"spawn"``.
         copy: return fresh observation arrays on every call (default). With False the
             same (shared) arrays are filled again by the next call.
@@ -383,7 +385,7 @@ class SoArmVectorEnv(VectorEnv):
             ``obs_type``, ``observation_height`` ...).
 
     Raises:
-        ValueError: a bad ``num_envs``, ``num_workers``, ``autoreset_mode``,
+        ValueError: a bad ``num_envs``, ``num_processes``, ``autoreset_mode``,
             ``start_method`` or environment argument (checked in this process, before
             any worker starts).
     """
