@@ -3,8 +3,12 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
+import subprocess
+import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -315,3 +319,20 @@ def test_bad_arguments_name_what_was_expected():
             envs.reset(seed=[1, 2, 3])
     finally:
         envs.close()
+
+
+def test_the_vector_env_example_runs_as_a_user_runs_it():
+    script = Path(__file__).resolve().parents[1] / "examples" / "vector_env.py"
+    done = subprocess.run(
+        [sys.executable, str(script), "--num-envs", "3", "--steps", "40"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    assert re.search(r"3 x gym_soarm/LiftCube-v0 in \d processes", done.stdout), done.stdout
+    assert "vector env:" in done.stdout and "one env:" in done.stdout
+    bad = subprocess.run(
+        [sys.executable, str(script), "--num-envs", "0"], capture_output=True, text=True, timeout=60
+    )
+    assert bad.returncode == 2 and "--num-envs and --steps must be >= 1; got 0" in bad.stderr
