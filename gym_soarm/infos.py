@@ -259,15 +259,7 @@ class InfoReader:
         add_info: Callable[[dict[str, Any], dict[str, Any], int], dict[str, Any]],
     ) -> dict[str, Any]:
         """The batched info of one step, given each block's :meth:`InfoWriter.write`."""
-        layouts: list[Layout | None] = []
-        for block, message in enumerate(messages):
-            if message[0] == "table":
-                _, number, new, _ = message
-                if new is not None:
-                    self.layouts[block][number] = new
-                layouts.append(self.layouts[block][number])
-            else:
-                layouts.append(None)
+        layouts = self.note(messages)
         first = layouts[0]
         if first is not None and all(layout is first or layout == first for layout in layouts[1:]):
             objects = [row for message in messages for row in message[3]]
@@ -275,6 +267,20 @@ class InfoReader:
             if batched is not None:
                 return batched
         return merge(self.dicts(messages, layouts), self.ones, add_info)
+
+    def note(self, messages: Sequence[tuple[Any, ...] | None]) -> list[Layout | None]:
+        """Learn the new layouts the messages bring (None: a block that sent nothing, as
+        when it raised); each message's layout, None for whole dicts."""
+        layouts: list[Layout | None] = []
+        for block, message in enumerate(messages):
+            if message is None or message[0] != "table":
+                layouts.append(None)
+                continue
+            _, number, new, _ = message
+            if new is not None:
+                self.layouts[block][number] = new
+            layouts.append(self.layouts[block][number])
+        return layouts
 
     def dicts(
         self, messages: Sequence[tuple[Any, ...]], layouts: Sequence[Layout | None]

@@ -32,8 +32,9 @@ import pickle
 import signal
 import traceback
 import weakref
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection, wait
+from multiprocessing.reduction import ForkingPickler
 from typing import Any
 
 import numpy as np
@@ -226,9 +227,18 @@ class _Block:
             infos.append(info)
         return self.info_writer.write(infos), finals
 
-    def call(self, name: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> list[Any]:
+    def call(
+        self,
+        name: str,
+        args: tuple[Any, ...],
+        kwargs: dict[str, Any],
+        mask: list[bool] | None = None,
+    ) -> list[Any]:
         results = []
-        for env in self.envs:
+        for k, env in enumerate(self.envs):
+            if mask is not None and not mask[k]:
+                results.append(None)
+                continue
             attribute = getattr(env, name)
             results.append(attribute(*args, **kwargs) if callable(attribute) else attribute)
         return results
@@ -287,13 +297,16 @@ def _worker_main(
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the caller's to handle
     from gym_soarm.tasks import register_task, task_names
 
-    envs: list[SoArmEnv] = []
     try:
         if spec.name not in task_names():
             register_task(spec)  # a task registered by the caller's own code
-        envs = _make_envs(count, env_kwargs)
         runner = _Block(
-            envs, first, _views(block, fields), leaves, max_episode_steps, autoreset_mode
+            _make_envs(count, env_kwargs),
+            first,
+            _views(block, fields),
+            leaves,
+            max_episode_steps,
+            autoreset_mode,
         )
     except Exception as exc:  # handed to the caller, which raises it
         conn.send(("error", _portable(exc), traceback.format_exc()))
@@ -306,17 +319,23 @@ def _worker_main(
             except EOFError:
                 return  # the caller went away
             if name == "close":
-                runner.close()
-                conn.send(("ok", None))
-                return
+                break
             try:
-                result = getattr(runner, name)(*args)
+                reply: tuple[Any, ...] = ("ok", getattr(runner, name)(*args))
             except Exception as exc:  # handed to the caller, which raises it
-                conn.send(("error", _portable(exc), traceback.format_exc()))
-            else:
-                conn.send(("ok", result))
+                reply = ("error", _portable(exc), traceback.format_exc())
+            try:
+                conn.send(reply)
+            except (pickle.PicklingError, TypeError, AttributeError) as exc:
+                # Nothing was written: a result that does not pickle is an error instead.
+                problem = TypeError(
+                    f"the result of {name}() cannot travel back from a worker process "
+                    f"({exc}); ask for a value that pickles."
+                )
+                conn.send(("error", problem, traceback.format_exc()))
     finally:
         runner.close()
+    conn.send(("ok", None))
 
 
 class _Worker:
@@ -495,7 +514,9 @@ class SoArmVectorEnv(VectorEnv):
                 self._workers.append(_Worker(index + 1, range(first, first + size), process, conn))
                 self._rows.append(range(first, first + size))
                 first += size
-            self._collect("start")
+            _, error = self._collect("start")
+            if error is not None:
+                raise error
         except BaseException:
             _stop_workers(self._workers, 1.0)
             self._workers.clear()
@@ -518,34 +539,70 @@ class SoArmVectorEnv(VectorEnv):
                 "this vector environment was closed; create a new one with gym.make_vec(...)."
             )
 
-    def _ask(self, name: str, args: Sequence[tuple[Any, ...]]) -> list[Any]:
+    def _ask(
+        self,
+        name: str,
+        args: Sequence[tuple[Any, ...]],
+        partial: Callable[[list[Any]], None] | None = None,
+    ) -> list[Any]:
         """Run ``_Block.<name>(*args[p])`` for every block (this process's is block 0) at
-        once; the results in block order."""
-        self._check_open()
-        for worker, worker_args in zip(self._workers, args[1:], strict=True):
-            with contextlib.suppress(OSError):  # it died: _collect names it
-                worker.conn.send((name, worker_args))
-        try:
-            here = getattr(self._local, name)(*args[0])
-        except Exception:
-            if self._workers:
-                self._collect(name)  # the workers' replies first: the pipes stay in step
-            raise
-        return [here, *self._collect(name)] if self._workers else [here]
+        once; the results in block order.
 
-    def _collect(self, what: str) -> list[Any]:
-        """Every worker's reply, in order; raise the first error once all have answered."""
+        Every worker answers before anything is raised, so the pipes stay in step; when a
+        block raised, ``partial`` first sees the others' results (None for the failed).
+        An interruption (Ctrl-C) in the middle closes the vector env: its workers may
+        still be writing into the shared memory.
+        """
+        self._check_open()
+        messages = []
+        for worker_args in args[1:]:
+            try:
+                messages.append(ForkingPickler.dumps((name, worker_args)))
+            except (pickle.PicklingError, TypeError, AttributeError) as exc:
+                raise TypeError(
+                    f"the arguments of {name}() cannot travel to the worker processes ({exc}); "
+                    "pass values that pickle."
+                ) from None
+        try:
+            for worker, message in zip(self._workers, messages, strict=True):
+                with contextlib.suppress(OSError):  # it died: _collect names it
+                    worker.conn.send_bytes(message)
+            try:
+                here = getattr(self._local, name)(*args[0])
+            except Exception:
+                replies, _ = self._collect(name)
+                if partial is not None:
+                    partial([None, *replies])
+                raise
+            replies, error = self._collect(name)
+        except (Exception, WorkerDiedError):
+            raise
+        except BaseException:
+            self.close()  # Ctrl-C between a request and its replies
+            raise
+        if error is not None:
+            if partial is not None:
+                partial([here, *replies])
+            raise error
+        return [here, *replies]
+
+    def _collect(self, what: str) -> tuple[list[Any], BaseException | None]:
+        """Every worker's reply, in order (None where it raised), and the first error.
+
+        Raises:
+            WorkerDiedError: a worker ended; the vector env is closed.
+        """
         results: list[Any] = [None] * len(self._workers)
-        place = {worker.index: k for k, worker in enumerate(self._workers)}
-        error: tuple[BaseException, str] | None = None
+        error: BaseException | None = None
         dead: _Worker | None = None
-        pending = list(self._workers)
+        pending = list(enumerate(self._workers))
         while pending:
-            ready = set(wait([w.conn for w in pending] + [w.process.sentinel for w in pending]))
+            watched = [w.conn for _, w in pending] + [w.process.sentinel for _, w in pending]
+            ready = set(wait(watched))
             still = []
-            for worker in pending:
+            for k, worker in pending:
                 if worker.conn not in ready and worker.process.sentinel not in ready:
-                    still.append(worker)
+                    still.append((k, worker))
                     continue
                 try:
                     reply = worker.conn.recv() if worker.conn.poll() else None
@@ -553,13 +610,15 @@ class SoArmVectorEnv(VectorEnv):
                     reply = None
                 if reply is None:
                     if worker.process.is_alive():
-                        still.append(worker)  # the sentinel fired first; the reply follows
+                        still.append((k, worker))  # the sentinel fired first; the reply follows
                         continue
                     dead = dead or worker
                 elif reply[0] == "ok":
-                    results[place[worker.index]] = reply[1]
+                    results[k] = reply[1]
                 elif error is None:
-                    error = (reply[1], reply[2])
+                    error, text = reply[1], reply[2]
+                    if hasattr(error, "add_note"):
+                        error.add_note(f"raised in a vector env worker process:\n{text}")
             pending = still
             if dead is not None:
                 break
@@ -570,14 +629,15 @@ class SoArmVectorEnv(VectorEnv):
                 f"{what}(); the vector environment is closed. Create a new one with "
                 "gym.make_vec(...)."
             )
+            if what == "start":
+                text += (
+                    " A worker imports the main module again: a script that makes the vector "
+                    'env must do it under `if __name__ == "__main__":` (and not from stdin); '
+                    "or pass num_processes=1."
+                )
             self.close()
             raise WorkerDiedError(text)
-        if error is not None:
-            exc, text = error
-            if hasattr(exc, "add_note"):
-                exc.add_note(f"raised in a vector env worker process:\n{text}")
-            raise exc
-        return results
+        return results, error
 
     def _split(self, values: Sequence[Any]) -> list[list[Any]]:
         """``values`` (one per environment) cut into each block's share."""
@@ -611,13 +671,19 @@ class SoArmVectorEnv(VectorEnv):
             seeds: list[int | None] = [None] * self.num_envs
         elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
             seeds = [int(seed) + i for i in range(self.num_envs)]
-        else:
+        elif isinstance(seed, (Sequence, np.ndarray)) and not isinstance(seed, str):
             seeds = list(seed)
             if len(seeds) != self.num_envs:
                 raise ValueError(
                     f"seed must be None, an int or a list of num_envs={self.num_envs} seeds; "
                     f"got a list of length {len(seeds)}."
                 )
+        else:
+            raise ValueError(
+                f"seed must be None, an int >= 0 or a list of num_envs={self.num_envs} seeds; "
+                f"got {seed!r}."
+            )
+        seeds = [None if s is None else check_int("seed", s, 0) for s in seeds]
         options = dict(options) if options is not None else None
         mask = None
         if options is not None and "reset_mask" in options:
@@ -663,9 +729,10 @@ class SoArmVectorEnv(VectorEnv):
                 f"actions must have shape {expected} (one row of joint targets per "
                 f"environment); got shape {array.shape}."
             )
-        if array.dtype == np.bool_ or not np.issubdtype(array.dtype, np.number):
+        if array.dtype.kind not in "iuf":
             raise ValueError(
-                f"actions must be real numbers of shape {expected}; got dtype {array.dtype}."
+                f"actions must be real numbers (ints or floats) of shape {expected}; got dtype "
+                f"{array.dtype}."
             )
         if self.autoreset_mode is AutoresetMode.DISABLED and self._autoreset_envs.any():
             done = np.flatnonzero(self._autoreset_envs).tolist()
@@ -686,7 +753,8 @@ class SoArmVectorEnv(VectorEnv):
         self._arrays["actions"][...] = array
         messages = []
         finals: dict[int, tuple[Any, dict[str, Any]]] = {}
-        for message, part_finals in self._ask("step", [()] * self.num_processes):
+        parts = self._ask("step", [()] * self.num_processes, partial=self._after_failed_step)
+        for message, part_finals in parts:
             messages.append(message)
             finals.update(part_finals)
         merged = self._info_reader.read(messages, self._add_info)
@@ -703,6 +771,12 @@ class SoArmVectorEnv(VectorEnv):
             truncations,
             merged,
         )
+
+    def _after_failed_step(self, parts: list[Any]) -> None:
+        """A block raised during a step: keep what the others sent (their new info
+        layouts, their episodes' ends), so the next step reads them right."""
+        self._info_reader.note([None if part is None else part[0] for part in parts])
+        self._autoreset_envs = self._arrays["terminations"] | self._arrays["truncations"]
 
     def render(self) -> tuple[Any, ...] | None:
         """Each environment's ``render()``, rendered in its own worker."""
@@ -725,6 +799,22 @@ class SoArmVectorEnv(VectorEnv):
         shares = [(name, args, kwargs)] * self.num_processes
         return tuple(r for part in self._ask("call", shares) for r in part)
 
+    def call_some(
+        self, indices: Sequence[int], name: str, *args: Any, **kwargs: Any
+    ) -> dict[int, Any]:
+        """:meth:`call` on the environments of ``indices`` only; their results by index.
+
+        Raises:
+            ValueError: an index outside ``0 .. num_envs - 1``.
+        """
+        wanted = set()
+        for index in indices:
+            wanted.add(check_int("index", index, 0, self.num_envs - 1))
+        mask = [i in wanted for i in range(self.num_envs)]
+        shares = [(name, args, kwargs, part) for part in self._split(mask)]
+        results = [r for part in self._ask("call", shares) for r in part]
+        return {i: results[i] for i in sorted(wanted)}
+
     def get_attr(self, name: str) -> tuple[Any, ...]:
         """The attribute ``name`` of every environment, in order."""
         if name == TIME_LIMIT_ATTRIBUTE:
@@ -745,8 +835,10 @@ class SoArmVectorEnv(VectorEnv):
 
     def close_extras(self, **kwargs: Any) -> None:
         """Close every environment (each in its worker), then end the worker processes."""
-        self._local.close()
-        self._finalizer()  # _stop_workers, once
+        try:
+            self._local.close()
+        finally:
+            self._finalizer()  # _stop_workers, once
 
     def close(self, **kwargs: Any) -> None:
         """Close all environments and end every worker process; idempotent."""

@@ -230,3 +230,19 @@ def test_a_multi_task_recording_is_the_same_with_workers_and_ray(tmp_path):
     summary = record(tmp_path / "ray", ray_address="local", workers=2, **args)
     assert summary.tasks == ("ReachTarget-v0", "PushCube-v0") and summary.episodes == 4
     assert_same_dataset(tmp_path / "one", tmp_path / "ray")
+
+
+def test_workers_that_cannot_start_end_the_recording_with_the_fix(tmp_path):
+    # A script fed on stdin: the workers cannot import its main module again and die
+    # while starting; the recorder gives up after a few, naming the fix.
+    script = (
+        "from gym_soarm.data.record import record\n"
+        f"record({str(tmp_path / 'ds')!r}, task='LiftCube-v0', episodes=60, seed=0,\n"
+        "       camera_config='none', workers=2, progress=False)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-"], input=script, capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode != 0
+    assert "recording workers died 3 times while starting" in done.stderr
+    assert 'if __name__ == "__main__":' in done.stderr

@@ -13,6 +13,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 if os.environ.get("GYM_SOARM_REQUIRE_RL") != "1":
@@ -221,3 +222,32 @@ def test_ctrl_c_keeps_the_last_checkpoint_and_curve(tmp_path):
     for name in ("model.zip", "curve.csv", "curve.png", "settings.json"):
         assert (out / name).is_file(), name
     TrainedPolicy(out)  # the kept checkpoint loads
+
+
+def test_the_sb3_view_of_the_native_vector_env_honours_indices():
+    from gym_soarm.rl.native import NativeVecEnv
+
+    env_kwargs = recipe("ppo", "ReachTarget-v0")["env"]
+    venv = NativeVecEnv("ReachTarget-v0", env_kwargs, 3, num_processes=2)
+    try:
+        venv.seed(5)
+        obs = venv.reset()
+        assert obs.shape == (3, len(venv.get_attr("observation_names")[0]))
+        assert [set(info) >= {"is_success", "reward_terms"} for info in venv.reset_infos] == [
+            True
+        ] * 3
+        venv.set_attr("tag", "b", indices=[1])
+        assert venv.get_attr("tag", indices=1) == ["b"]
+        assert venv.env_method("__getattribute__", "tag", indices=[1]) == ["b"]
+        with pytest.raises(AttributeError, match="tag"):
+            venv.get_attr("tag", indices=[0])  # only environment 1 has it
+        venv.set_attr("tag", "all")
+        assert venv.get_attr("tag") == ["all"] * 3
+        venv.step_async(np.zeros((3, 6), np.float32))
+        _, rewards, dones, infos = venv.step_wait()
+        assert rewards.dtype == np.float32 and dones.shape == (3,) and len(infos) == 3
+        venv.set_options([{"a": 1}, None, None])
+        with pytest.raises(ValueError, match="same options"):
+            venv.reset()
+    finally:
+        venv.close()

@@ -336,3 +336,82 @@ def test_the_vector_env_example_runs_as_a_user_runs_it():
         [sys.executable, str(script), "--num-envs", "0"], capture_output=True, text=True, timeout=60
     )
     assert bad.returncode == 2 and "--num-envs and --steps must be >= 1; got 0" in bad.stderr
+
+
+def test_bad_actions_seeds_and_arguments_are_refused_and_the_env_goes_on():
+    envs = SoArmVectorEnv(3, num_processes=2, task="LiftCube-v0", **STATE)
+    reference = SoArmVectorEnv(3, num_processes=1, task="LiftCube-v0", **STATE)
+    try:
+        with pytest.raises(ValueError, match="seed must be an int >= 0"):
+            envs.reset(seed=[0, -1, 2])
+        with pytest.raises(ValueError, match="seed must be None, an int >= 0 or a list"):
+            envs.reset(seed=1.5)
+        assert_same(envs.reset(seed=np.int64(4)), reference.reset(seed=4), "reset")
+        with pytest.raises(ValueError, match="real numbers"):
+            envs.step(np.full((3, 6), 1j))
+        with pytest.raises(TypeError, match="cannot travel to the worker processes"):
+            envs.set_attr("callback", lambda: None)
+        actions = np.full((3, 6), 0.2, np.float32)
+        assert_same(envs.step(actions), reference.step(actions), "after the refusals")
+    finally:
+        envs.close()
+        reference.close()
+
+
+def test_a_block_that_raises_leaves_the_others_readable():
+    # The first step brings each block's info layout; the worker's block raises, this
+    # process's block steps. The next step must still read this block's infos.
+    envs = SoArmVectorEnv(4, num_processes=2, task="LiftCube-v0", **STATE)
+    try:
+        envs.reset(seed=0)
+        assert envs.call_some([3], "__setattr__", "_validate_action", None) == {3: None}
+        with pytest.raises(TypeError, match="not callable"):
+            envs.step(np.zeros((4, 6), np.float32))
+        envs.call_some([3], "__delattr__", "_validate_action")
+        _, _, _, _, info = envs.step(np.zeros((4, 6), np.float32))
+        assert info["_is_success"].all() and info["task"].shape == (4,)
+        with pytest.raises(ValueError, match="index must be an int from 0 to 3"):
+            envs.call_some([4], "task_description")
+    finally:
+        envs.close()
+
+
+CTRL_C_SCRIPT = """
+import sys, numpy as np
+from gym_soarm.vector import SoArmVectorEnv
+if __name__ == "__main__":
+    envs = SoArmVectorEnv(4, num_processes=2, task="LiftCube-v0", obs_type="state")
+    envs.reset(seed=0)
+    print("pids", *envs.worker_pids, flush=True)
+    try:
+        while True:
+            envs.step(np.zeros((4, 6), np.float32))
+    except KeyboardInterrupt:
+        # Mid-call the vector env closes itself (its workers may still be writing);
+        # between calls nothing is out of step and it goes on.
+        if not envs.closed:
+            envs.step(np.zeros((4, 6), np.float32))
+        envs.close()
+        print("interrupted and closed", flush=True)
+"""
+
+
+def test_ctrl_c_in_the_middle_of_a_step_closes_the_vector_env(tmp_path):
+    script = tmp_path / "ctrl_c.py"
+    script.write_text(CTRL_C_SCRIPT)
+    proc = subprocess.Popen(
+        [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        first = proc.stdout.readline()
+        assert first.startswith("pids"), proc.stderr.read()
+        pids = [int(p) for p in first.split()[1:]]
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert "interrupted and closed" in out, err
+    assert proc.returncode == 0, err
+    assert not any(_alive(pid) for pid in pids)

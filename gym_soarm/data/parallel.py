@@ -363,10 +363,11 @@ def record_in_workers(
     shard_root = writer.root / SCRATCH_DIR / "shards"
     shard_root.mkdir(parents=True, exist_ok=True)
     merger = OrderedMerger(
-        writer, plan.seed, episodes, max_attempts, bar, f"{workers} workers", plan.spec.name
+        writer, plan.seed, episodes, max_attempts, bar, f"{workers} processes", plan.spec.name
     )
     retry: list[int] = []  # attempts whose worker died, lowest first
     deaths: dict[int, int] = {}
+    start_deaths = 0  # workers that died before they were ready
     interrupted = False
     slots: list[_Slot] = []
     player: _Player | None = None
@@ -462,6 +463,16 @@ def record_in_workers(
                         )
                     retry.append(lost)
                     retry.sort()
+                elif not slot.ready:
+                    start_deaths += 1
+                    if start_deaths >= MAX_DEATHS_PER_ATTEMPT:
+                        raise RuntimeError(
+                            f"recording workers died {start_deaths} times while starting (last "
+                            f"exit code {slot.process.exitcode}). A script that records with "
+                            'workers must start them under `if __name__ == "__main__":` (spawn '
+                            "and forkserver import the main module again); otherwise record with "
+                            "workers=1."
+                        )
                 slots[index] = _Slot(context, plan, shard_root)
     except KeyboardInterrupt:
         interrupted = True

@@ -238,10 +238,11 @@ def record(
             ``3 * episodes + 10``).
         progress: show a progress bar on stderr.
         workers: record the attempts in this many processes: this one and
-            ``workers - 1`` worker processes (each writes its episodes to a shard; this
-            process merges them in attempt order, and plays attempts itself while no
-            worker is free). The dataset is the same, frame for frame, for every worker
-            count; a worker that dies mid-episode costs a retry of that attempt.
+            ``workers - 1`` worker processes (each sends its episodes as shards; this
+            process plays attempts itself while no worker is free and merges everything
+            in attempt order; see :mod:`gym_soarm.data.parallel`). The dataset is the
+            same, frame for frame, for every worker count; a worker that dies
+            mid-episode costs a retry of that attempt.
         start_method: how workers start: ``"forkserver"`` (default where available) or
             ``"spawn"``.
         ray_address: run the attempts as Ray tasks instead (``pip install

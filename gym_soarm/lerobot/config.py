@@ -111,9 +111,10 @@ class SoArmEnvConfig(EnvConfig):
             (gym_soarm's vector env on worker processes,
             :class:`gym_soarm.vector.SoArmVectorEnv`), ``"async"`` (Gymnasium's
             ``AsyncVectorEnv``, one process per environment), ``"sync"``
-            (``SyncVectorEnv``), or ``"auto"`` (default): the fastest measured on two
-            cores (README, "Vector envs and recording at scale"), native for several
-            environments with or without cameras, sync for one.
+            (``SyncVectorEnv``), or ``"auto"`` (default): native for several
+            environments (README, "Vector envs and recording at scale": the fastest with
+            state observations, level with async with a camera, on two cores), sync for
+            one.
         calibration: with LeRobot units, the path of a real SO-101 follower's
             calibration JSON, so the env speaks that arm's values (see
             :mod:`gym_soarm.calibration`); None for the fixed maps.
@@ -245,16 +246,17 @@ class SoArmEnvConfig(EnvConfig):
         """``{group: {task_index: VectorEnv}}`` of ``n_envs`` environments per selected task.
 
         With ``vector_env="auto"``: one environment is a ``SyncVectorEnv``; several
-        step in gym_soarm's native vector env, one worker process per CPU (with state
-        observations and with cameras it measured faster than ``AsyncVectorEnv`` and
-        ``SyncVectorEnv`` on two cores), whatever ``use_async_envs`` says.
+        step in gym_soarm's native vector env, one process per CPU, whatever
+        ``use_async_envs`` says: on two cores it measured the fastest with state
+        observations, and level with ``AsyncVectorEnv`` with a camera while starting
+        two processes instead of one per environment.
         """
         n_envs = check_int("n_envs", n_envs, 1)
         envs: dict[str, dict[int, gym.vector.VectorEnv]] = {}
         built: list[gym.vector.VectorEnv] = []
         try:
             for item in resolve_selection(self.task):
-                vector = self._vector_env(item, n_envs, use_async_envs)
+                vector = self._vector_env(item, n_envs)
                 built.append(vector)
                 envs.setdefault(item.group, {})[item.index] = vector
         except BaseException:
@@ -267,9 +269,7 @@ class SoArmEnvConfig(EnvConfig):
         """The ``gym.make`` keywords of one selected task: the fields, then its suite's."""
         return {**self.gym_kwargs, **item.variation}
 
-    def _vector_env(
-        self, item: SelectedTask, n_envs: int, use_async_envs: bool
-    ) -> gym.vector.VectorEnv:
+    def _vector_env(self, item: SelectedTask, n_envs: int) -> gym.vector.VectorEnv:
         env_id = get_task(item.task).env_id
         kwargs = self.task_kwargs(item)
         mode = self.vector_env

@@ -25,6 +25,16 @@ from gym_soarm.tasks import get_task
 from gym_soarm.vector import SoArmVectorEnv
 
 
+def _one(info: dict[str, Any], i: int) -> dict[str, Any]:
+    """Environment ``i``'s own info from a batched one (the keys its ``_key`` mask marks)."""
+    out: dict[str, Any] = {}
+    for key, value in info.items():
+        if key.startswith("_") or not info.get(f"_{key}", np.zeros(i + 1, bool))[i]:
+            continue
+        out[key] = _one(value, i) if isinstance(value, dict) else value[i]
+    return out
+
+
 class NativeVecEnv(VecEnv):
     """``n_envs`` environments of ``task`` in a :class:`~gym_soarm.vector.SoArmVectorEnv`.
 
@@ -58,10 +68,20 @@ class NativeVecEnv(VecEnv):
         self._actions: np.ndarray | None = None
 
     def reset(self) -> np.ndarray:
-        """Reset every environment with the seeds given to :meth:`seed` (once), else fresh."""
-        options = self._options[0] if self._options and self._options[0] else None
-        obs, _ = self.vector.reset(seed=list(self._seeds), options=options)
-        self.reset_infos = [{} for _ in range(self.num_envs)]
+        """Reset every environment with the seeds given to :meth:`seed` (once), else fresh.
+
+        Raises:
+            ValueError: environments were given different reset options (the native
+                vector env resets all with the same).
+        """
+        options = [o or None for o in self._options] or [None]
+        if any(o != options[0] for o in options):
+            raise ValueError(
+                "NativeVecEnv resets every environment with the same options; got different "
+                f"options per environment: {options}. Use vec_env='dummy' for that."
+            )
+        obs, info = self.vector.reset(seed=list(self._seeds), options=options[0])
+        self.reset_infos = [_one(info, i) for i in range(self.num_envs)]
         self._reset_seeds()
         self._reset_options()
         return obs
@@ -95,17 +115,18 @@ class NativeVecEnv(VecEnv):
         return list(self._get_indices(indices))
 
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
-        values = self.vector.get_attr(attr_name)
-        return [values[i] for i in self._indices(indices)]
+        wanted = self._indices(indices)
+        if wanted == list(range(self.num_envs)):
+            return list(self.vector.get_attr(attr_name))
+        values = self.vector.call_some(wanted, "__getattribute__", attr_name)
+        return [values[i] for i in wanted]
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
-        current = list(self.vector.get_attr(attr_name)) if indices is not None else None
-        if current is None:
+        wanted = self._indices(indices)
+        if wanted == list(range(self.num_envs)):
             self.vector.set_attr(attr_name, value)
-            return
-        for i in self._indices(indices):
-            current[i] = value
-        self.vector.set_attr(attr_name, current)
+        else:
+            self.vector.call_some(wanted, "__setattr__", attr_name, value)
 
     def env_method(
         self,
@@ -114,8 +135,11 @@ class NativeVecEnv(VecEnv):
         indices: VecEnvIndices = None,
         **method_kwargs: Any,
     ) -> list[Any]:
-        results = self.vector.call(method_name, *method_args, **method_kwargs)
-        return [results[i] for i in self._indices(indices)]
+        wanted = self._indices(indices)
+        if wanted == list(range(self.num_envs)):
+            return list(self.vector.call(method_name, *method_args, **method_kwargs))
+        results = self.vector.call_some(wanted, method_name, *method_args, **method_kwargs)
+        return [results[i] for i in wanted]
 
     def env_is_wrapped(self, wrapper_class: type, indices: VecEnvIndices = None) -> list[bool]:
         return [False for _ in self._indices(indices)]

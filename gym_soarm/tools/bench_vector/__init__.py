@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import statistics
 import time
 from collections.abc import Sequence
@@ -121,8 +122,13 @@ def _free_runner(
     conn: Connection, env_id: str, kwargs: dict[str, Any], count: int, seed: int
 ) -> None:
     """A ceiling process: on each message ``seconds``, step ``count`` environments in
-    turn flat out for that long; reply their steps/s."""
-    envs = [gym.make(env_id, **kwargs) for _ in range(count)]
+    turn flat out for that long; reply their steps/s (or an error's text)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the benchmark's to handle
+    try:
+        envs = [gym.make(env_id, **kwargs) for _ in range(count)]
+    except Exception as exc:  # reported by Ceiling.rate
+        conn.send(f"{type(exc).__name__}: {exc}")
+        return
     try:
         for index, env in enumerate(envs):
             env.reset(seed=seed + index)
@@ -152,12 +158,16 @@ def _free_runner(
 
 
 class Ceiling:
-    """``num_envs`` environments split over one process per CPU (at most ``num_envs``),
-    each process stepping its share in turn with no hand-off."""
+    """``num_envs`` environments split over ``processes`` processes (default: one per
+    CPU; at most ``num_envs``) as the native vector env splits them, each process
+    stepping its share in turn with no hand-off."""
 
-    def __init__(self, env_id: str, kwargs: dict[str, Any], num_envs: int) -> None:
+    def __init__(
+        self, env_id: str, kwargs: dict[str, Any], num_envs: int, processes: int | None = None
+    ) -> None:
         context = worker_context(None, preload=[__name__])
-        shares = np.array_split(np.arange(num_envs), min(num_envs, cpu_count()))
+        count = min(num_envs, processes or cpu_count())
+        shares = np.array_split(np.arange(num_envs), count)
         self.runners: list[tuple[Any, Connection]] = []
         try:
             for share in shares:
@@ -178,7 +188,16 @@ class Ceiling:
         """Aggregate steps/s of all processes stepping at once for about ``seconds``."""
         for _, conn in self.runners:
             conn.send(seconds)
-        return sum(conn.recv() for _, conn in self.runners)
+        total = 0.0
+        for process, conn in self.runners:
+            try:
+                reply = conn.recv()
+            except EOFError:
+                reply = f"it exited with code {process.exitcode}"
+            if isinstance(reply, str):
+                raise RuntimeError(f"a ceiling process could not step its environments: {reply}")
+            total += reply
+        return total
 
     def close(self) -> None:
         for process, conn in self.runners:
@@ -228,7 +247,7 @@ def measure(
         for n in num_envs:
             batches = rng.uniform(low, high, (N_ACTIONS, n, len(low))).astype(np.float32)
             vectors: dict[str, gym.vector.VectorEnv] = {}
-            ceiling = Ceiling(env_id, kwargs, n)
+            ceiling = Ceiling(env_id, kwargs, n, num_processes)
             rates: dict[str, list[float]] = {"single": [], "ceiling": []} | {m: [] for m in modes}
             try:
                 for mode in modes:
@@ -283,7 +302,7 @@ def measure(
         "load_average_start": load_start,
         "load_average_end": os.getloadavg() if hasattr(os, "getloadavg") else None,
         "single_steps_per_s": statistics.median(single_rates),
-        "ceiling_processes": cpu_count(),
+        "ceiling_processes": num_processes or cpu_count(),
         "rows": rows,
     }
 
