@@ -60,19 +60,6 @@ def flatten(info: dict[str, Any], numbers: list[Any], objects: list[Any]) -> Lay
     return tuple(layout)
 
 
-def _width(layout: Layout) -> int:
-    width = 0
-    for entry in layout:
-        kind = entry[1]
-        if kind is dict:
-            width += _width(entry[2])
-        elif kind is np.ndarray:
-            width += int(np.prod(entry[3], dtype=np.int64))
-        elif kind is not object:
-            width += 1
-    return width
-
-
 def unflatten(layout: Layout, numbers: np.ndarray, objects: Sequence[Any]) -> dict[str, Any]:
     """The info dict that :func:`flatten` wrote as ``numbers`` (one row) and ``objects``."""
     position = [0, 0]  # next number, next object

@@ -13,7 +13,9 @@ from __future__ import annotations
 import multiprocessing
 import os
 from collections.abc import Sequence
+from multiprocessing.connection import Connection
 from multiprocessing.context import BaseContext
+from typing import Any
 
 from gym_soarm.validation import check_choice
 
@@ -47,6 +49,16 @@ def worker_context(start_method: str | None, preload: Sequence[str] = ()) -> Bas
     return context
 
 
+def end_process(process: Any, conn: Connection, timeout: float) -> None:
+    """Wait up to ``timeout`` s for a worker told to stop, kill it if it has not, and
+    close its pipe: no process is left behind."""
+    process.join(timeout)
+    if process.is_alive():
+        process.kill()
+        process.join()
+    conn.close()
+
+
 def cpu_count() -> int:
     """The CPUs this process may run on (its affinity where the platform reports it)."""
     if hasattr(os, "sched_getaffinity"):
@@ -54,4 +66,4 @@ def cpu_count() -> int:
     return max(1, os.cpu_count() or 1)
 
 
-__all__ = ["START_METHODS", "cpu_count", "default_start_method", "worker_context"]
+__all__ = ["START_METHODS", "cpu_count", "default_start_method", "end_process", "worker_context"]

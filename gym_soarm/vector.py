@@ -44,7 +44,7 @@ from gymnasium.vector.utils import batch_space
 
 from gym_soarm.env import SoArmEnv
 from gym_soarm.infos import INFO_NUMBERS, InfoReader, InfoWriter, merge
-from gym_soarm.processes import START_METHODS, cpu_count, worker_context
+from gym_soarm.processes import START_METHODS, cpu_count, end_process, worker_context
 from gym_soarm.validation import check_choice, check_int
 
 _Leaf = tuple[tuple[str, ...], tuple[int, ...], np.dtype]
@@ -363,11 +363,7 @@ def _stop_workers(workers: list[_Worker], timeout: float) -> None:
         with contextlib.suppress(OSError, EOFError, ValueError):
             if worker.process.is_alive() and worker.conn.poll(timeout):
                 worker.conn.recv()
-        worker.process.join(timeout)
-        if worker.process.is_alive():
-            worker.process.kill()
-            worker.process.join()
-        worker.conn.close()
+        end_process(worker.process, worker.conn, timeout)
 
 
 def _exit_text(exitcode: int | None) -> str:

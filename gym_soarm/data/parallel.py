@@ -37,7 +37,7 @@ from typing import Any
 from gym_soarm.data.attempt import FPS, AttemptPlan, record_attempt, write_variation
 from gym_soarm.data.format import SCRATCH_DIR
 from gym_soarm.data.writer import LeRobotDatasetWriter
-from gym_soarm.processes import worker_context
+from gym_soarm.processes import end_process, worker_context
 
 # How many times one attempt may take its worker down before the recording gives up.
 MAX_DEATHS_PER_ATTEMPT = 3
@@ -71,6 +71,21 @@ class _Player:
             self.close()
             raise
 
+    def _record(
+        self, writer: LeRobotDatasetWriter, attempt: int
+    ) -> tuple[bool, bool, dict[str, Any] | None]:
+        """Play ``attempt`` into ``writer``'s buffer: whether to keep it (else the buffer
+        is cleared), whether it succeeded, its draw."""
+        try:
+            success, drawn = record_attempt(self.env, self.expert, writer, self.plan, attempt)
+        except BaseException:
+            writer.clear_episode_buffer()
+            raise
+        keep = success or self.plan.keep == "all"
+        if not keep:
+            writer.clear_episode_buffer()
+        return keep, success, drawn
+
     def play(self, attempt: int) -> tuple[bool, str | None, dict[str, Any] | None]:
         """Play ``attempt``: whether it succeeded, its shard (None: not kept), its draw."""
         if self.writer is None:  # made at the first attempt: an unused worker writes nothing
@@ -78,17 +93,11 @@ class _Player:
                 self.scratch, FPS, self.plan.features, robot_type=self.plan.robot_type,
                 overwrite=True,
             )  # fmt: skip
-        try:
-            success, drawn = record_attempt(self.env, self.expert, self.writer, self.plan, attempt)
-        except BaseException:
-            self.writer.clear_episode_buffer()
-            raise
+        keep, success, drawn = self._record(self.writer, attempt)
         shard = None
-        if success or self.plan.keep == "all":
+        if keep:
             shard = str(self.shard_root / f"attempt-{attempt:07d}")
             self.writer.export_episode(shard)
-        else:
-            self.writer.clear_episode_buffer()
         return success, shard, drawn
 
     def play_into(
@@ -96,15 +105,8 @@ class _Player:
     ) -> tuple[bool, int | None, dict[str, Any] | None]:
         """Play ``attempt`` straight into ``writer`` (no shard): whether it succeeded,
         its episode index (None: not kept), its draw."""
-        try:
-            success, drawn = record_attempt(self.env, self.expert, writer, self.plan, attempt)
-        except BaseException:
-            writer.clear_episode_buffer()
-            raise
-        if success or self.plan.keep == "all":
-            return success, writer.save_episode(), drawn
-        writer.clear_episode_buffer()
-        return success, None, drawn
+        keep, success, drawn = self._record(writer, attempt)
+        return success, writer.save_episode() if keep else None, drawn
 
     def close(self) -> None:
         if self.env is not None:
@@ -159,11 +161,7 @@ class _Slot:
         if self.process.is_alive():
             with contextlib.suppress(OSError):
                 self.conn.send(None)
-            self.process.join(timeout)
-        if self.process.is_alive():
-            self.process.kill()
-            self.process.join()
-        self.conn.close()
+        end_process(self.process, self.conn, timeout)
 
 
 class _Starter:
@@ -209,12 +207,6 @@ class _Starter:
             self._stopped = True
             started, self._started = self._started, []
         return started
-
-
-def _context(start_method: str | None) -> Any:
-    # The fork server imports the recorder (MuJoCo, gymnasium, the tasks) once and forks
-    # every worker from there. It never renders, so the workers may.
-    return worker_context(start_method, preload=[__name__])
 
 
 class OrderedMerger:
@@ -359,7 +351,9 @@ def record_in_workers(
         RuntimeError: a worker raised (the message holds its traceback), or one attempt
             took its worker down :data:`MAX_DEATHS_PER_ATTEMPT` times.
     """
-    context = _context(start_method)
+    # The fork server imports the recorder (MuJoCo, gymnasium, the tasks) once and forks
+    # every worker from there. It never renders, so the workers may.
+    context = worker_context(start_method, preload=[__name__])
     shard_root = writer.root / SCRATCH_DIR / "shards"
     shard_root.mkdir(parents=True, exist_ok=True)
     merger = OrderedMerger(

@@ -39,7 +39,7 @@ class NativeVecEnv(VecEnv):
     """``n_envs`` environments of ``task`` in a :class:`~gym_soarm.vector.SoArmVectorEnv`.
 
     Args:
-        task: a registered task name (``"ReachTarget-v0"``).
+        task: a registered task's name.
         env_kwargs: the keywords of ``gym.make`` for each environment.
         n_envs: environments stepped together.
         num_processes: processes that step them (default: one per CPU).

@@ -40,7 +40,7 @@ import gymnasium as gym
 import numpy as np
 
 import gym_soarm  # noqa: F401  (registers the environments)
-from gym_soarm.processes import cpu_count, worker_context
+from gym_soarm.processes import cpu_count, end_process, worker_context
 from gym_soarm.tools.timings import spread
 
 DEFAULT_ENV_ID = "gym_soarm/LiftCube-v0"
@@ -90,19 +90,25 @@ def make_vector(
     raise ValueError(f"mode must be one of {', '.join(VECTOR_MODES)}; got {mode!r}.")
 
 
-def single_rate(env: gym.Env, actions: np.ndarray, seconds: float) -> float:
-    """Steps/s of one environment stepped for about ``seconds`` (at least one step)."""
+def cycle_rate(envs: Sequence[gym.Env], actions: np.ndarray, seconds: float) -> float:
+    """Steps/s of ``envs`` stepped in turn for about ``seconds`` (at least one round)."""
     steps = 0
     started = time.perf_counter()
     deadline = started + seconds
     while True:
-        _, _, terminated, truncated, _ = env.step(actions[steps % len(actions)])
-        steps += 1
-        if terminated or truncated:
-            env.reset()
+        for env in envs:
+            _, _, terminated, truncated, _ = env.step(actions[steps % len(actions)])
+            steps += 1
+            if terminated or truncated:
+                env.reset()
         if time.perf_counter() >= deadline:
             break
     return steps / (time.perf_counter() - started)
+
+
+def single_rate(env: gym.Env, actions: np.ndarray, seconds: float) -> float:
+    """Steps/s of one environment stepped for about ``seconds`` (at least one step)."""
+    return cycle_rate([env], actions, seconds)
 
 
 def vector_rate(envs: gym.vector.VectorEnv, actions: np.ndarray, seconds: float) -> float:
@@ -142,16 +148,7 @@ def _free_runner(
                 return
             if seconds is None:
                 return
-            steps = 0
-            started = time.perf_counter()
-            deadline = started + seconds
-            while time.perf_counter() < deadline or steps == 0:
-                for env in envs:
-                    _, _, terminated, truncated, _ = env.step(actions[steps % N_ACTIONS])
-                    steps += 1
-                    if terminated or truncated:
-                        env.reset()
-            conn.send(steps / (time.perf_counter() - started))
+            conn.send(cycle_rate(envs, actions, seconds))
     finally:
         for env in envs:
             env.close()
@@ -203,11 +200,7 @@ class Ceiling:
         for process, conn in self.runners:
             with contextlib.suppress(OSError):
                 conn.send(None)
-            process.join(10)
-            if process.is_alive():
-                process.kill()
-                process.join()
-            conn.close()
+            end_process(process, conn, 10)
         self.runners = []
 
 
