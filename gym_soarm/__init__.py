@@ -45,6 +45,7 @@ from gym_soarm.render.backend import GLBackendError  # noqa: E402
 from gym_soarm.render.display import DisplayUnavailableError  # noqa: E402
 from gym_soarm.render.video import save_frames_to_mp4  # noqa: E402
 from gym_soarm.sim.meshes import MeshError  # noqa: E402
+from gym_soarm.snapshot import Snapshot  # noqa: E402
 from gym_soarm.tasks import (  # noqa: E402
     ENV_IDS,
     TaskSpec,
@@ -69,6 +70,7 @@ __all__ = [
     "DisplayUnavailableError",
     "GLBackendError",
     "MeshError",
+    "Snapshot",
     "SoArmEnv",
     "TaskSpec",
     "__version__",

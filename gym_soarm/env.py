@@ -17,12 +17,14 @@ from dm_control.rl import control
 from gymnasium import spaces
 
 from gym_soarm import constants
+from gym_soarm import snapshot as snapshots
 from gym_soarm.control import CONTROL_MODES, ControlMode, make_control
 from gym_soarm.dynamics import apply_dynamics, load_dynamics
 from gym_soarm.render.backend import RENDER_QUALITIES
 from gym_soarm.render.camera import CameraRenderer
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS, STS3215, Randomizer, Sts3215Servo
+from gym_soarm.snapshot import Snapshot
 from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.base import Task, TaskSpec
 from gym_soarm.tasks.distractors import MAX_DISTRACTORS, place_distractors, with_distractors
@@ -48,6 +50,8 @@ IMAGE_MODALITIES = ("rgb", "depth", "segmentation")
 # LeRobot's evaluation (lerobot >= 0.6) marks the start of every rollout with this reset
 # option; it is accepted and has no effect.
 LEROBOT_ROLLOUT_OPTION = "lerobot_new_rollout"
+STATE_OPTION = "state"
+"""The reset option that restores a :class:`~gym_soarm.snapshot.Snapshot`."""
 
 
 class SoArmEnv(gym.Env):
@@ -107,6 +111,10 @@ class SoArmEnv(gym.Env):
     episode) pays 1 plus 1 for every step left until the step limit, what the rest of
     the episode could have earned at the most, so reaching success always pays more
     than hovering short of it. ``"sparse"``: 1.0 on the success step, else 0.0.
+
+    **Snapshots**: ``s = env.unwrapped.save_state()`` is a picklable
+    :class:`~gym_soarm.snapshot.Snapshot` of everything the next step depends on, and
+    ``env.reset(options={"state": s})`` restores it (see :meth:`save_state`).
 
     **Diverging physics**: when a step leaves the simulation with NaN/inf, raises a
     MuJoCo instability warning, throws an object more than 5 m or turns a joint past
@@ -248,6 +256,7 @@ class SoArmEnv(gym.Env):
         if distractors:
             scene, label = with_distractors(scene, distractors), f"{spec.name}+{distractors}d"
         self._physics = SoArmPhysics.from_scene(scene, render_quality, label)
+        self._scene_label = label
         self._task = task_logic
         self.task = spec.name
         self._options: dict[str, Any] = {}
@@ -473,23 +482,151 @@ class SoArmEnv(gym.Env):
         return array
 
     def _validate_options(self, options: Mapping[str, Any] | None) -> dict[str, Any]:
+        """The task's checked options, or ``{"state": snapshot}`` for a restore."""
         keys = self._task.option_keys
         example = f"options={{{keys[0]!r}: ...}}" if keys else "options=None"
         if options is None:
             return {}
         if not isinstance(options, Mapping):
             raise ArgumentTypeError(
-                f"options must be a dict with keys from {choices(keys) or 'none'}; got "
-                f"{options!r}. Pass e.g. {example}."
+                f"options must be a dict with keys from {choices(keys) or 'none'} (or "
+                f'"state"); got {options!r}. Pass e.g. {example}.'
             )
-        unknown = sorted(set(options) - {*keys, LEROBOT_ROLLOUT_OPTION}, key=repr)
+        unknown = sorted(set(options) - {*keys, STATE_OPTION, LEROBOT_ROLLOUT_OPTION}, key=repr)
         if unknown:
             raise ValueError(
                 f"unknown reset option(s) {unknown!r}: options must have keys from "
-                f"{choices(keys) or 'none (this task takes no options)'} for {self.task}; got "
-                f"{list(options)!r}. Remove the others."
+                f"{choices(keys) or 'none (this task takes no options)'} for {self.task}, or "
+                f'"state" (a snapshot to restore); got {list(options)!r}. Remove the others.'
             )
+        if STATE_OPTION in options:
+            others = sorted(set(options) & set(keys), key=repr)
+            if others:
+                raise ValueError(
+                    f'reset option "state" restores a snapshot, which holds the whole '
+                    f"episode; it cannot be combined with the task's options {others!r}. "
+                    'Pass options={"state": snapshot} alone.'
+                )
+            snapshot = snapshots.check_snapshot(
+                options[STATE_OPTION], self._simulation_settings(), f"this {self.task} environment"
+            )
+            snapshots.check_model_fields(self._physics.model.ptr, snapshot.model)
+            if len(snapshot.physics) != len(
+                snapshots.physics_state(self._physics.model.ptr, self._physics.data.ptr)
+            ):
+                raise ValueError(
+                    "the snapshot's physics state does not fit this environment's model; "
+                    "restore it into an environment made with the same settings."
+                )
+            return {STATE_OPTION: snapshot}
         return self._task.validate_options({k: v for k, v in options.items() if k in keys})
+
+    # --- snapshots -------------------------------------------------------------------------
+    def _simulation_settings(self) -> dict[str, Any]:
+        return {
+            "task": self.task,
+            "scene": self._scene_label,
+            "distractors": self.distractors,
+            "object_placement": self.object_placement,
+            "servo_model": self.servo_model,
+            "dynamics": self.dynamics,
+            "physics_randomization": self.physics_randomization,
+            "visual_randomization": self.visual_randomization,
+        }
+
+    def save_state(self) -> Snapshot:
+        """A picklable snapshot of everything the next step depends on.
+
+        ``env.reset(options={"state": snapshot})`` restores it, in this environment or in
+        another made with the same simulation settings (task, ``distractors``,
+        ``object_placement``, ``servo_model``, ``dynamics``, ``physics_randomization``
+        and ``visual_randomization``; a snapshot of other settings is refused with a
+        ``ValueError`` naming both values). The same actions then give bit for bit the
+        same observations, rewards, terminations and infos as this environment would.
+
+        The snapshot holds the MuJoCo state (``mjSTATE_INTEGRATION``), the model fields
+        that resets write (fixture poses, randomised lights, colours, cameras, masses,
+        friction, gains and damping), the commanded servo targets, the control delay's
+        queue, the STS3215 servo model's state, the control mode's state, the task's
+        episode variables, the step count, the reset's variation and the state of
+        ``np_random`` (see :class:`gym_soarm.snapshot.Snapshot`).
+
+        The settings that do not change the simulation (``obs_type``, ``control_mode``,
+        ``normalize_actions``, ``units``, ``reward_type``, image size, cameras, render
+        quality) may differ: restored into another ``control_mode``, that mode starts
+        from its reset state (the ee modes' ``ik_error_*`` at 0) instead.
+
+        ``reset(options={"state": s})`` does not draw a new episode: it runs no task
+        placement or randomisation and returns the restored state's observation and
+        info (with ``info["variation"]`` of the snapshot's episode, as a reset reports
+        it). A ``seed`` given with it is applied and then overwritten by the snapshot's
+        random state, which wins; ``"state"`` cannot be combined with the task's own
+        options (``ValueError``), and anything but a snapshot raises ``TypeError``. All
+        checks run before anything changes. The step count continues from the
+        snapshot's (the success reward uses it), but a ``TimeLimit`` wrapper counts its
+        steps from the restoring reset, so truncation by the step limit comes that many
+        steps later than in the original episode.
+
+        Raises:
+            RuntimeError: no episode is running (before the first ``reset``, after a
+                diverged step or after ``close``).
+        """
+        self._check_open("save_state")
+        if self._needs_reset:
+            raise RuntimeError(
+                f"save_state() needs a running episode: {self._no_episode_reason}. "
+                "Call reset() first."
+            )
+        m, d = self._physics.model.ptr, self._physics.data.ptr
+        servo = self._servo
+        return Snapshot(
+            version=snapshots.SNAPSHOT_VERSION,
+            settings=self._simulation_settings(),
+            physics=snapshots.physics_state(m, d),
+            model=snapshots.model_fields(m),
+            commanded=self._commanded.copy(),
+            pending_targets=tuple(np.array(t, dtype=np.float64) for t in self._pending_targets),
+            delay_steps=int(self._delay_steps),
+            servo=None
+            if servo is None
+            else (tuple(map(float, servo._command)), tuple(map(float, servo._output))),
+            control_mode=self.control_mode,
+            control=snapshots.control_state(self._control),
+            task_state=snapshots.task_state(self._task),
+            step_count=int(self._step_count),
+            variation=copy.deepcopy(self._variation),
+            rng=copy.deepcopy(self.np_random.bit_generator.state),
+        )
+
+    def _restore(self, snapshot: Snapshot) -> tuple[Any, dict[str, Any]]:
+        """Write ``snapshot`` (already checked) into this environment; the reset's result."""
+        physics = self._physics
+        m, d = physics.model.ptr, physics.data.ptr
+        snapshots.set_model_fields(m, snapshot.model)
+        snapshots.set_physics_state(m, d, snapshot.physics)
+        self._delay_steps = snapshot.delay_steps
+        self._pending_targets = [np.array(t, dtype=np.float64) for t in snapshot.pending_targets]
+        if self._servo is not None and snapshot.servo is not None:
+            command, output = snapshot.servo
+            self._servo._command = [float(v) for v in command]
+            self._servo._output = [float(v) for v in output]
+        if snapshot.control_mode == self.control_mode:
+            snapshots.set_control_state(self._control, snapshot.control)
+        else:
+            self._control.reset()
+        self._commanded = np.array(snapshot.commanded, dtype=np.float64)
+        snapshots.set_task_state(self._task, snapshot.task_state)
+        self._variation = copy.deepcopy(snapshot.variation)
+        self._step_count = snapshot.step_count
+        self.np_random = snapshots.generator_from_state(snapshot.rng)
+        self._needs_reset = False
+        obs = self._observation()
+        info = self._info()
+        if self._report_variation:
+            info["variation"] = copy.deepcopy(self._variation)
+        if self._viewer is not None:
+            self._viewer.show(info)
+        return obs, info
 
     # --- Gymnasium API -------------------------------------------------------------------
     def reset(
@@ -498,6 +635,8 @@ class SoArmEnv(gym.Env):
         self._check_open("reset")
         options = self._validate_options(options)
         super().reset(seed=seed)
+        if STATE_OPTION in options:
+            return self._restore(options[STATE_OPTION])
         with self._physics.reset_context():
             self._task.initialize_episode(self._physics, self.np_random, options)
             placed = place_distractors(self._physics, self.distractors, self.np_random)

@@ -4,7 +4,7 @@ Every task's expert episodes and seeded random steps (:mod:`gym_soarm.tools.epis
 hash the same twice in this process and once more in a fresh Python process. Nothing is
 compared with hashes made elsewhere: floating point differs across CPUs. A guard across a
 refactor records before and checks after, on one machine
-(``python -m gym_soarm.tools.episode_hashes record|check FILE``).
+(``python -m gym_soarm.cli.episode_hashes record|check FILE``).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ def test_same_seed_twice_in_one_process_gives_the_same_episodes(task, first_run)
 
 def test_a_fresh_process_gives_the_same_episodes(first_run):
     out = subprocess.run(
-        [sys.executable, "-m", "gym_soarm.tools.episode_hashes", "print"],
+        [sys.executable, "-m", "gym_soarm.cli.episode_hashes", "print"],
         capture_output=True,
         text=True,
         check=True,

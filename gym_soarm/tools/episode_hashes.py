@@ -10,8 +10,8 @@ across CPUs, so hashes are only ever compared with hashes made where the same ke
 (:func:`machine_key`: CPU, operating system, Python, NumPy and MuJoCo). To check that a
 refactor keeps every episode, record before and check after, on the same machine::
 
-    python -m gym_soarm.tools.episode_hashes record hashes.json   # before the change
-    python -m gym_soarm.tools.episode_hashes check hashes.json    # after it
+    python -m gym_soarm.cli.episode_hashes record hashes.json   # before the change
+    python -m gym_soarm.cli.episode_hashes check hashes.json    # after it
 
 ``check`` refuses a file recorded under another key rather than reporting differences
 that only the machine explains.
@@ -19,12 +19,10 @@ that only the machine explains.
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import platform
 import struct
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -154,32 +152,3 @@ def check(path: str | Path) -> list[str]:
         )
     now = episode_hashes(list(table["hashes"]))
     return [task for task, value in table["hashes"].items() if now[task] != value]
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="python -m gym_soarm.tools.episode_hashes",
-        description="Record every task's episode hashes on this machine, or check them "
-        "against a recording made on this machine (before and after a change).",
-    )
-    parser.add_argument("command", choices=["record", "check", "print"])
-    parser.add_argument("path", nargs="?", default="episode_hashes.json")
-    args = parser.parse_args(argv)
-    if args.command == "print":
-        json.dump(episode_hashes(), sys.stdout, indent=2)
-        sys.stdout.write("\n")
-        return 0
-    if args.command == "record":
-        record(args.path)
-        sys.stdout.write(f"recorded {args.path}\n")
-        return 0
-    changed = check(args.path)
-    if changed:
-        sys.stdout.write(f"episodes changed: {', '.join(changed)}\n")
-        return 1
-    sys.stdout.write("every task's episodes are as recorded\n")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
