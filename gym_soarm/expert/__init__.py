@@ -29,8 +29,9 @@ import numpy as np
 from gym_soarm.env import SoArmEnv
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, ScriptedExpert
+from gym_soarm.tasks.state_expert import DEFAULT_STATE_CONFIG, StateExpert, StateExpertConfig
 from gym_soarm.tasks.suites import EVAL_SEED
-from gym_soarm.validation import ArgumentTypeError
+from gym_soarm.validation import ArgumentTypeError, check_choice
 
 EVALUATION_SEEDS = 3
 """Seeds per grid cell and yaw for grid tasks (9 x 4 x 3 = 108 episodes)."""
@@ -38,20 +39,39 @@ EVALUATION_EPISODES = 100
 """Seeded resets (seeds 0 .. 99) for tasks that place objects anywhere."""
 
 
-def make_expert(env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> ScriptedExpert:
-    """A scripted expert for the task of ``env`` (what ``gym.make`` returns, or its env).
+EXPERT_KINDS = ("state", "scripted")
+"""``make_expert``'s kinds: ``"state"`` acts from the state alone (the default where the
+task has one), ``"scripted"`` follows its timed script."""
+
+
+def make_expert(
+    env: gym.Env,
+    config: ExpertConfig | StateExpertConfig | None = None,
+    kind: str = "state",
+) -> ScriptedExpert | StateExpert:
+    """An expert for the task of ``env`` (what ``gym.make`` returns, or its env).
+
+    The default, ``kind="state"``, is an expert that acts from the state: each call
+    re-derives where the task stands from the simulation and the env's commanded servo
+    targets, so two environments in the same state get the same action whatever their
+    histories, it finishes from perturbed states, and it can label any state a learner
+    visits. ``kind="scripted"`` is the timed script (minimum-jerk phases), which
+    follows its plan from the reset on. A task without a state expert gets its script.
 
     Args:
         env: a gym_soarm environment, wrapped or not.
-        config: heights and phase durations of the scripted motion.
+        config: the expert's figures: a :class:`StateExpertConfig` for ``"state"``, an
+            :class:`ExpertConfig` for ``"scripted"`` (default: the expert's own).
+        kind: ``"state"`` or ``"scripted"``.
 
     Returns:
-        A policy: call ``expert.reset()`` after each ``env.reset(...)`` and
-        ``expert(obs, info)`` for each action.
+        A policy: ``expert(obs, info)`` gives each action. Call ``expert.reset()`` after
+        each ``env.reset(...)`` (a state expert needs none, but accepts it).
 
     Raises:
-        TypeError: ``env`` is not a gym_soarm environment, or ``config`` is not an
-            :class:`ExpertConfig`.
+        TypeError: ``env`` is not a gym_soarm environment, or ``config`` is not the
+            kind's config class.
+        ValueError: ``kind`` is not one of :data:`EXPERT_KINDS`.
     """
     base = getattr(env, "unwrapped", None)
     if not isinstance(base, SoArmEnv):
@@ -59,12 +79,24 @@ def make_expert(env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> Scripted
             "make_expert expects an environment made by gym.make('SoArm-v0') or another "
             f"gym_soarm id; got {type(env).__name__}."
         )
+    check_choice("kind", kind, EXPERT_KINDS)
+    spec = base.task_spec
+    if kind == "state" and spec.state_expert is not None and not isinstance(config, ExpertConfig):
+        if config is None:
+            return spec.state_expert(env)
+        if not isinstance(config, StateExpertConfig):
+            raise ArgumentTypeError(
+                "config of a state expert must be a gym_soarm.expert.StateExpertConfig (e.g. "
+                f"StateExpertConfig(line_speed_m=0.002)); got {type(config).__name__}."
+            )
+        return spec.state_expert(env, config)
+    if config is None:
+        config = DEFAULT_CONFIG
     if not isinstance(config, ExpertConfig):
         raise ArgumentTypeError(
             "config must be a gym_soarm.expert.ExpertConfig (e.g. "
             f"ExpertConfig(carry_steps=80)); got {type(config).__name__}."
         )
-    spec = base.task_spec
     if spec.expert is None:
         raise ValueError(f"task {spec.name!r} has no scripted expert.")
     return spec.expert(env, config)
@@ -145,9 +177,13 @@ def evaluate_protocol(task: str, episodes: int, **env_kwargs: Any) -> list[Episo
 
 __all__ = [
     "DEFAULT_CONFIG",
+    "DEFAULT_STATE_CONFIG",
+    "EXPERT_KINDS",
     "EpisodeResult",
     "ExpertConfig",
     "ScriptedExpert",
+    "StateExpert",
+    "StateExpertConfig",
     "evaluate",
     "evaluate_protocol",
     "evaluation_resets",

@@ -285,6 +285,9 @@ class TaskSpec:
         default_placement: ``"grid"`` or ``"uniform"``: how objects start by default.
         aliases: other spellings every command line accepts (``"lift"``).
         extra_env_ids: gym ids beside ``gym_soarm/<name>`` (``"SoArm-v0"``).
+        state_expert: the expert that acts from the state
+            (:class:`~gym_soarm.tasks.state_expert.StateExpert`, ``state_expert(env)``),
+            or None: ``make_expert`` then gives the scripted one.
     """
 
     name: str
@@ -297,6 +300,7 @@ class TaskSpec:
     default_placement: str = "uniform"
     aliases: tuple[str, ...] = ()
     extra_env_ids: tuple[str, ...] = ()
+    state_expert: type | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.endswith(("-v0", "-v1", "-v2")):

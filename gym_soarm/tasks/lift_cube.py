@@ -15,6 +15,7 @@ from gym_soarm.tasks.base import Evaluation, RewardWeights, TaskSpec
 from gym_soarm.tasks.cube import CUBE, CUBE_STATE_FIELDS, CubeGridTask
 from gym_soarm.tasks.rewards import LIFT_HEIGHT_M, lift_progress, pick_progress, pick_terms
 from gym_soarm.tasks.scripted import LiftExpert
+from gym_soarm.tasks.state_expert import LiftStateExpert
 
 
 class LiftTask(CubeGridTask):
@@ -48,4 +49,5 @@ SPEC = TaskSpec(
     summary="lift the cube 5 cm above the table",
     default_placement="grid",
     aliases=("lift",),
+    state_expert=LiftStateExpert,
 )

@@ -32,6 +32,7 @@ from gym_soarm.tasks.rewards import (
     tolerance,
 )
 from gym_soarm.tasks.scripted import PlaceExpert
+from gym_soarm.tasks.state_expert import PlaceStateExpert
 
 GOAL_RADIUS_M = 0.04
 GOAL_TOP_Z_M = 0.001
@@ -108,6 +109,14 @@ class PickAndPlaceExpert(PlaceExpert):
         return np.array([goal[0], goal[1], constants.TABLE_TOP_Z_M + CUBE_HALF_M])
 
 
+class PickAndPlaceStateExpert(PlaceStateExpert):
+    """From the state: grasp the cube, carry it over the pad, lower it, let go, rise."""
+
+    def place_target(self, name: str) -> np.ndarray:
+        goal = self.physics.fixture_position(GOAL.name)
+        return np.array([goal[0], goal[1], constants.TABLE_TOP_Z_M + CUBE_HALF_M])
+
+
 SPEC = TaskSpec(
     name="PickAndPlaceCube-v0",
     task=PickAndPlaceTask,
@@ -119,4 +128,5 @@ SPEC = TaskSpec(
     default_placement="grid",
     aliases=("pick_and_place",),
     extra_env_ids=("SoArm-v0", "gym_soarm/SoArm-v0"),
+    state_expert=PickAndPlaceStateExpert,
 )

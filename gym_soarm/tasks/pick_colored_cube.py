@@ -40,6 +40,7 @@ from gym_soarm.tasks.base import (
 from gym_soarm.tasks.cube import CUBE_HALF_M
 from gym_soarm.tasks.rewards import LIFT_HEIGHT_M, lift_progress, pick_terms, reach_distance
 from gym_soarm.tasks.scripted import LiftExpert
+from gym_soarm.tasks.state_expert import LiftStateExpert
 
 COLOURS: tuple[str, ...] = ("red", "green", "blue")
 """The cubes' colours, in declaration order; each cube is called ``<colour>_cube``."""
@@ -154,6 +155,13 @@ class PickColoredCubeExpert(LiftExpert):
         return self.env.task_logic.target
 
 
+class PickColoredCubeStateExpert(LiftStateExpert):
+    """From the state: the lift on the cube the instruction names."""
+
+    def grasp_object(self) -> str:
+        return self.env.task_logic.target
+
+
 SPEC = TaskSpec(
     name="PickColoredCube-v0",
     task=PickColoredCubeTask,
@@ -164,4 +172,5 @@ SPEC = TaskSpec(
     summary="pick up the cube of the named colour out of three",
     default_placement="uniform",
     aliases=("pick_colored_cube",),
+    state_expert=PickColoredCubeStateExpert,
 )

@@ -36,6 +36,7 @@ from gym_soarm.tasks.base import (
 )
 from gym_soarm.tasks.rewards import REACH_MARGIN_M, norm, tolerance
 from gym_soarm.tasks.scripted import NoGraspExpert, Phase
+from gym_soarm.tasks.state_expert import Move, StateExpert
 
 TARGET_RADIUS_M = 0.015
 """The ball is as wide as the cube: smaller, it is a few pixels of a 320 x 240 camera."""
@@ -123,6 +124,25 @@ class ReachExpert(NoGraspExpert):
         self._line_move(self._target(), self._yaw)
 
 
+class ReachStateExpert(StateExpert):
+    """From the state: swing the closed jaws over the target, then straight down onto it."""
+
+    def decide(self, commanded: np.ndarray) -> Move:
+        target = self.physics.fixture_position(TARGET.name)
+        hover = target.copy()
+        hover[2] += HOVER_ABOVE_M
+        site, yaw = self.commanded_site(commanded)
+        closed = self.config.gripper_closed_rad
+        _, rotation = self._kinematics.site_pose(self.seed_towards(hover))
+        natural = math.atan2(rotation[1, 0], rotation[0, 0])
+        above = float(np.hypot(*(site[:2] - target[:2])))
+        if above < 0.01 and site[2] > target[2] - 0.005:
+            return Move("line", target, yaw, closed, stage="reach")
+        if float(np.linalg.norm(site - hover)) > 0.02:
+            return Move("joint", hover, natural, closed, stage="approach")
+        return Move("line", hover, natural, closed, stage="align")
+
+
 SPEC = TaskSpec(
     name="ReachTarget-v0",
     task=ReachTask,
@@ -133,4 +153,5 @@ SPEC = TaskSpec(
     summary="move the jaws' centre to a red ball above the table",
     default_placement="uniform",
     aliases=("reach",),
+    state_expert=ReachStateExpert,
 )

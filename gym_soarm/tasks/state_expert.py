@@ -1,0 +1,469 @@
+"""Experts that act from the state: each step re-derives where the task stands.
+
+A :class:`StateExpert` keeps no clock and no plan. Every call reads the simulation (the
+objects, the jaws' contacts, the measured joints) and the environment's commanded servo
+targets, decides what the task needs now — reach the hover point above the object,
+descend, close, lift, carry, lower, release, retreat — and moves the servo targets one
+step towards it, within speed and acceleration limits. So:
+
+* two environments in the same state get the same action whatever their histories, and
+  an expert made afresh on a restored snapshot answers as the one that lived through the
+  episode (the expert can label any state a learner visits: DAgger);
+* from any reachable state — after random actions, a push, a dropped object, half-closed
+  jaws — it carries on from there.
+
+Only memoisation is kept between calls (the grasp yaw of an object pose, an inverse
+kinematics solution of a target), which gives the same answers as computing afresh.
+
+Speeds: the arm's targets move at most ``joint_speed_rad`` per step and change that speed
+by at most ``joint_accel_rad`` per step, measured against the joints' current velocity,
+and brake in time to stop at the goal; straight-line moves
+of the jaws go at most ``line_speed_m`` per step; the gripper's target at most
+``gripper_speed_rad``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from gym_soarm import constants
+from gym_soarm.control import ControlMode
+from gym_soarm.sim.kinematics import ArmKinematics, downward_rotation
+from gym_soarm.sim.physics import SoArmPhysics
+
+_QUARTER_TURN_RAD = math.pi / 2
+_N_ARM = len(constants.ARM_JOINT_NAMES)
+_ROLL = constants.ARM_JOINT_NAMES.index("wrist_roll")
+
+# Elbow up, wrist bent down (arm joints, rad): where inverse kinematics starts from,
+# turned towards the target by the shoulder pan.
+READY_POSTURE_RAD = np.array([0.0, 0.0, 0.6, 1.1, 0.0])
+
+
+@dataclasses.dataclass(frozen=True)
+class StateExpertConfig:
+    """Figures of a state expert: heights in metres, speeds per control step (50 Hz)."""
+
+    hover_height_m: float = 0.05
+    """Height of ``grasp_center`` above the table while coming over an object."""
+    grasp_height_m: float = 0.018
+    """Height of ``grasp_center`` when closing on an object on the table."""
+    fixed_jaw_clearance_m: float = 0.004
+    """Gap left between the fixed jaw and the object while descending."""
+    carry_height_m: float = 0.075
+    """Height of a held object's centre while carrying it (and of the lift target)."""
+    lift_reach_m: tuple[float, float] = (0.13, 0.20)
+    """Distances from the shoulder pan axis where a lifted object is held."""
+    place_clearance_m: float = 0.003
+    """Height of the object's bottom above its resting place when the jaws let go."""
+    retreat_height_m: float = 0.10
+    """Height of ``grasp_center`` after a release."""
+    gripper_open_rad: float = 0.6
+    gripper_closed_rad: float = -0.17453
+    joint_speed_rad: float = 0.05
+    """Fastest change of an arm joint's target per step."""
+    joint_accel_rad: float = 0.006
+    """Largest change of that speed per step (over the joint's measured speed)."""
+    line_speed_m: float = 0.003
+    """Fastest straight-line move of the jaws per step (descend, lift, lower)."""
+    carry_speed_m: float = 0.004
+    """Fastest move of a held object per step on its way to the target."""
+    gripper_speed_rad: float = 0.06
+    """Fastest change of the gripper's target per step."""
+    aligned_m: float = 0.006
+    """Horizontal distance to the grasp point within which the jaws descend."""
+    aligned_low_m: float = 0.015
+    """The same once below the hover height (so that a descent is not broken off)."""
+    arrived_m: float = 0.004
+    """Distance to the grasp point (commanded and measured) at which the jaws close."""
+    missed_gripper_rad: float = 0.05
+    """A measured gripper angle under this, with the jaws commanded shut, is a miss."""
+    over_target_m: float = 0.008
+    """Horizontal distance of a held object to its target within which it is lowered."""
+    over_target_low_m: float = 0.02
+    """The same once lowered below the carry height."""
+
+    def __post_init__(self) -> None:
+        for field in dataclasses.fields(self):
+            value = getattr(self, field.name)
+            if field.name == "lift_reach_m":
+                low, high = value
+                if not 0.0 < low <= high:
+                    raise ValueError(
+                        f"lift_reach_m must be (min, max) metres with 0 < min <= max; got {value!r}."
+                    )
+            elif field.name.endswith(("_speed_rad", "_speed_m", "_accel_rad")) and not (
+                isinstance(value, float | int) and value > 0
+            ):
+                raise ValueError(f"{field.name} must be a number > 0; got {value!r}.")
+
+
+DEFAULT_STATE_CONFIG = StateExpertConfig()
+
+
+def _yaw_of(rotation: np.ndarray) -> float:
+    """The yaw of a jaws-down rotation: the direction of its closing (x) axis."""
+    return math.atan2(float(rotation[1, 0]), float(rotation[0, 0]))
+
+
+@dataclasses.dataclass(frozen=True)
+class Move:
+    """What the expert wants this step: a target for the jaws and one for the gripper.
+
+    ``kind``: ``"joint"`` (a joint-space move to the inverse kinematics of the target,
+    from an elbow-up posture: long moves), ``"line"`` (a straight line of the jaws) or
+    ``"hold"`` (the arm stays).
+    """
+
+    kind: str
+    position: np.ndarray | None
+    yaw: float
+    gripper: float
+    speed_m: float = 0.0
+    stage: str = ""
+
+
+class StateExpert:
+    """A policy that re-derives each step, from the state alone, what the task needs.
+
+    Subclasses implement :meth:`decide`, which returns a :class:`Move`; this class turns
+    it into servo targets within the speed limits and into the env's action. Call
+    ``expert(obs, info)`` for the action of the env's current state; :meth:`reset` does
+    nothing (kept so that code written for the scripted experts runs unchanged).
+    """
+
+    markov = True
+    """Marks the experts whose action depends on the state only."""
+
+    def __init__(self, env: gym.Env, config: StateExpertConfig = DEFAULT_STATE_CONFIG) -> None:
+        self.env = env.unwrapped
+        self.config = config
+        self._control: ControlMode = self.env.control
+        physics: SoArmPhysics = self.env.physics
+        self._kinematics = ArmKinematics(physics.model.ptr)
+        self._memo: dict[Any, Any] = {}
+        self.stage = ""
+        """The stage the last call was in (for logs and tests; never read back)."""
+
+    # --- public API ------------------------------------------------------------------
+    def reset(self) -> None:
+        """Nothing to reset: the expert keeps no episode state."""
+
+    def __call__(self, obs: Any = None, info: dict[str, Any] | None = None) -> np.ndarray:
+        """The action (float32) for the env's current state, in its control mode and units."""
+        targets = self.next_targets_radians()
+        return self._control.action_for_targets(targets, self.env.commanded_targets)
+
+    def next_targets_radians(self) -> np.ndarray:
+        """The next six servo targets in radians (float64), gripper last."""
+        commanded = np.asarray(self.env.commanded_targets, dtype=np.float64)
+        move = self.decide(commanded)
+        self.stage = move.stage
+        targets = commanded.copy()
+        targets[:_N_ARM] = self._arm_targets(move, commanded[:_N_ARM])
+        step = self.config.gripper_speed_rad
+        targets[_N_ARM] = commanded[_N_ARM] + np.clip(move.gripper - commanded[_N_ARM], -step, step)
+        return targets
+
+    def decide(self, commanded: np.ndarray) -> Move:
+        """What to do now, from the state (``commanded``: the six servo targets, rad)."""
+        raise NotImplementedError
+
+    # --- reading the state --------------------------------------------------------------
+    @property
+    def physics(self) -> SoArmPhysics:
+        return self.env.physics
+
+    def commanded_site(self, commanded: np.ndarray) -> tuple[np.ndarray, float]:
+        """Where the commanded targets put ``grasp_center``, and the jaws' yaw there."""
+        position, rotation = self._kinematics.site_pose(commanded[:_N_ARM])
+        return position, _yaw_of(rotation)
+
+    def seed_towards(self, position: np.ndarray) -> np.ndarray:
+        """An elbow-up, wrist-down posture turned towards ``position``: the IK start."""
+        seed = READY_POSTURE_RAD.copy()
+        seed[0] = self._kinematics.pan_towards(position)
+        return seed
+
+    def solve(self, position: np.ndarray, yaw: float) -> tuple[np.ndarray, float]:
+        """The arm joints putting the jaws at ``position`` pointing down at ``yaw``, from
+        the elbow-up posture (memoised: a pure function of its arguments), and the cost
+        of the solution (wrist roll plus weighted errors)."""
+        key = ("solve", *np.asarray(position).tolist(), yaw)
+        found = self._memo.get(key)
+        if found is None:
+            q, position_error, rotation_error = self._kinematics.solve(
+                self.seed_towards(position), position, downward_rotation(yaw)
+            )
+            found = (q, abs(float(q[_ROLL])) + 100.0 * (position_error + rotation_error))
+            if len(self._memo) > 64:
+                self._memo.clear()
+            self._memo[key] = found
+        return found
+
+    def best_yaw(self, position: np.ndarray, yaws: list[float], near_yaw: float | None) -> float:
+        """Of ``yaws``, the one the jaws reach at ``position`` with least wrist roll; when
+        ``near_yaw`` is given (the jaws are already close), the one nearest to it."""
+        if near_yaw is not None:
+            return min(yaws, key=lambda yaw: abs(math.remainder(yaw - near_yaw, math.tau)))
+        return min(yaws, key=lambda yaw: self.solve(position, yaw)[1])
+
+    # --- turning a move into targets ----------------------------------------------------
+    def _arm_targets(self, move: Move, arm: np.ndarray) -> np.ndarray:
+        if move.kind == "hold" or move.position is None:
+            return arm
+        if move.kind == "joint":
+            goal, _ = self.solve(move.position, move.yaw)
+        else:
+            goal = self._line_step(move, arm)
+        return self._limited(goal, arm)
+
+    def _line_step(self, move: Move, arm: np.ndarray) -> np.ndarray:
+        """The joints one straight-line step of the jaws towards ``move.position``."""
+        site, yaw = self._kinematics.site_pose(arm)
+        remaining = np.asarray(move.position) - site
+        distance = float(np.linalg.norm(remaining))
+        speed = move.speed_m or self.config.line_speed_m
+        length = min(speed, distance)
+        waypoint = site if distance == 0.0 else site + remaining * (length / distance)
+        turn = math.remainder(move.yaw - _yaw_of(yaw), math.tau)
+        limit = self.config.joint_speed_rad
+        next_yaw = _yaw_of(yaw) + min(max(turn, -limit), limit)
+        q, _, _ = self._kinematics.solve(arm, waypoint, downward_rotation(next_yaw))
+        return q
+
+    def _limited(self, goal: np.ndarray, arm: np.ndarray) -> np.ndarray:
+        """``arm`` moved towards ``goal`` within the speed and acceleration limits.
+
+        A trapezoidal profile read off the state: each joint's step exceeds what its
+        measured speed asks of the servo (twice the measured speed: the servos trail
+        their targets) by ``joint_accel_rad`` at most, and is no larger than what still
+        lets it brake to a stop at the goal. The joints move together: each covers the
+        same fraction of its way, so the jaws travel on a smooth path.
+        """
+        c = self.config
+        error = goal - arm
+        size = np.abs(error)
+        if float(size.max()) <= 1e-9:
+            return goal
+        speed = np.abs(self.physics.joint_velocities()[:_N_ARM]) * constants.CONTROL_TIMESTEP_S
+        limit = np.minimum(c.joint_speed_rad, 2.0 * speed + c.joint_accel_rad)
+        limit = np.minimum(limit, np.sqrt(2.0 * c.joint_accel_rad * size))
+        limit = np.maximum(limit, np.minimum(size, c.joint_accel_rad))
+        moving = size > 1e-9
+        fraction = min(1.0, float(np.min(limit[moving] / size[moving])))
+        return arm + error * fraction
+
+
+class GraspExpert(StateExpert):
+    """Grasp one object, then do the task's part with it held (:meth:`transport`).
+
+    Each step: if the object is held (both pads on it, the jaws commanded shut) the task's
+    :meth:`transport` decides; if the task is done with the object (:meth:`released`) the
+    jaws open and rise out of the way; otherwise the expert comes over the object, opens,
+    descends, closes, and after a miss (the jaws shut on nothing) opens and starts again.
+    """
+
+    def grasp_object(self) -> str:
+        """Name of the object to grasp now: the scene's only object by default."""
+        names = [item.name for item in self.env.task_spec.scene.objects]
+        if len(names) != 1:
+            raise NotImplementedError(
+                f"{type(self).__name__} must name the object to grasp (override grasp_object); "
+                f"this task has the objects {names}."
+            )
+        return names[0]
+
+    def grasp_yaws(self, name: str) -> list[float]:
+        """The jaw yaws the object can be grasped at: its four face directions."""
+        base = self.physics.object_yaw(name)
+        return [base + k * _QUARTER_TURN_RAD for k in range(4)]
+
+    def grasp_height(self, name: str) -> float:
+        """Height of ``grasp_center`` when closing on ``name``."""
+        return self.config.grasp_height_m
+
+    def transport(self, name: str, commanded: np.ndarray, site: np.ndarray, yaw: float) -> Move:
+        """What to do with the held object (the task's own part)."""
+        raise NotImplementedError
+
+    def released(self, name: str) -> bool:
+        """True once the object is where the task wants it and the jaws should let go."""
+        return False
+
+    def release_opening(self) -> float:
+        """Gripper target when letting go."""
+        return self.config.gripper_open_rad
+
+    def retreat(self, name: str, site: np.ndarray, yaw: float) -> Move:
+        """Let go and rise out of the way (the object is where it belongs)."""
+        c = self.config
+        opening = self.release_opening()
+        if self.physics.joint_angles()[_N_ARM] < opening - 0.15:
+            return Move("hold", None, yaw, opening, stage="release")
+        target = site.copy()
+        closing_axis = downward_rotation(yaw)[:, 0]
+        target[:2] = self.physics.object_position(name)[:2] - 0.012 * closing_axis[:2]
+        target[2] = max(c.retreat_height_m, site[2])
+        if site[2] >= c.retreat_height_m - 0.005:
+            return Move("hold", None, yaw, opening, stage="done")
+        return Move("line", target, yaw, opening, stage="retreat")
+
+    def decide(self, commanded: np.ndarray) -> Move:
+        c = self.config
+        physics = self.physics
+        name = self.grasp_object()
+        site, yaw = self.commanded_site(commanded)
+        gripper_command = float(commanded[_N_ARM])
+        gripper_measured = float(physics.joint_angles()[_N_ARM])
+        if self.released(name):
+            return self.retreat(name, site, yaw)
+        shut = gripper_command <= c.gripper_closed_rad + 0.05
+        if physics.grasped(name):
+            if shut:
+                return self.transport(name, commanded, site, yaw)
+            if gripper_command <= gripper_measured + 0.02:  # closing on it: finish
+                return Move("hold", None, yaw, c.gripper_closed_rad, stage="close")
+        return self.approach(name, site, yaw, gripper_command, gripper_measured)
+
+    def approach(
+        self,
+        name: str,
+        site: np.ndarray,
+        yaw: float,
+        gripper_command: float,
+        gripper_measured: float,
+    ) -> Move:
+        """Come over ``name``, open, descend and close (the object is not held)."""
+        c = self.config
+        physics = self.physics
+        obj = physics.object_position(name)
+        grasp = obj.copy()
+        grasp[2] = self.grasp_height(name)
+        low = site[2] < c.hover_height_m - 0.01
+        horizontal = float(np.hypot(*(site[:2] - obj[:2])))
+        near = horizontal < 0.03 and low
+        grasp_yaw = self.best_yaw(grasp, self.grasp_yaws(name), yaw if near else None)
+        closing_axis = downward_rotation(grasp_yaw)[:, 0]
+        grasp = grasp - c.fixed_jaw_clearance_m * closing_axis
+        hover = grasp.copy()
+        hover[2] = max(c.hover_height_m, grasp[2] + 0.03)
+        measured = physics.grasp_center()
+        offset = float(np.hypot(*(site[:2] - grasp[:2])))
+        if not low:  # start a descent only once the jaws are there, not just commanded there
+            offset = max(offset, float(np.hypot(*(measured[:2] - grasp[:2]))))
+        # Jaws held up by something (the object's top, a rim): not aligned, rise again.
+        blocked = measured[2] - site[2] > 0.012
+        aligned = offset < (c.aligned_low_m if low else c.aligned_m) and not blocked
+        is_open = gripper_command >= c.gripper_open_rad - 0.05
+        opening = gripper_command > gripper_measured + 0.02
+        closing = not is_open and not opening
+        at_grasp = (
+            float(np.linalg.norm(site - grasp)) < c.arrived_m
+            and float(np.linalg.norm(measured - grasp)) < 2.5 * c.arrived_m
+        )
+        if closing and aligned and low:
+            shut = gripper_command <= c.gripper_closed_rad + 0.01
+            if shut and gripper_measured < c.missed_gripper_rad:
+                return Move("hold", None, grasp_yaw, c.gripper_open_rad, stage="missed")
+            return Move("hold", None, grasp_yaw, c.gripper_closed_rad, stage="close")
+        if aligned and is_open:
+            if at_grasp:
+                return Move("hold", None, grasp_yaw, c.gripper_closed_rad, stage="close")
+            return Move("line", grasp, grasp_yaw, c.gripper_open_rad, stage="descend")
+        if low and not aligned:
+            up = site.copy()
+            up[2] = hover[2]
+            return Move("line", up, yaw, c.gripper_open_rad, speed_m=0.004, stage="rise")
+        if float(np.linalg.norm(site - hover)) > 0.02:
+            return Move("joint", hover, grasp_yaw, c.gripper_open_rad, stage="approach")
+        return Move("line", hover, grasp_yaw, c.gripper_open_rad, stage="align")
+
+    # --- held-object motions ------------------------------------------------------------
+    def held_offset(self, name: str) -> np.ndarray:
+        """Where the held object's centre sits relative to ``grasp_center`` (measured)."""
+        return self.physics.object_position(name) - self.physics.grasp_center()
+
+    def lift_move(self, name: str, site: np.ndarray, yaw: float, stage: str = "lift") -> Move:
+        """Raise the held object to the carry height, within the lift reach."""
+        c = self.config
+        target = self._kinematics.within_reach(site, c.lift_reach_m)
+        target[2] = c.carry_height_m - self.held_offset(name)[2]
+        return Move("line", target, yaw, c.gripper_closed_rad, speed_m=0.004, stage=stage)
+
+
+class LiftStateExpert(GraspExpert):
+    """Grasp the object and raise it to the carry height (``LiftCube-v0``)."""
+
+    def transport(self, name: str, commanded: np.ndarray, site: np.ndarray, yaw: float) -> Move:
+        return self.lift_move(name, site, yaw)
+
+
+class PlaceStateExpert(GraspExpert):
+    """Grasp the object, carry it over its target, lower it there and let go.
+
+    Subclasses give :meth:`place_target`: where the placed object's centre rests.
+    """
+
+    def place_target(self, name: str) -> np.ndarray:
+        raise NotImplementedError
+
+    def carry_height(self, target: np.ndarray) -> float:
+        """Height of the held object's centre while carrying it over to ``target``."""
+        c = self.config
+        return max(c.carry_height_m, target[2] + c.carry_height_m / 2)
+
+    def place_yaw(self, name: str, yaw: float) -> float:
+        """The jaws' yaw while lowering the object onto its target (default: as held)."""
+        return yaw
+
+    def released(self, name: str) -> bool:
+        target = self.place_target(name)
+        obj = self.physics.object_position(name)
+        over = float(np.hypot(*(obj[:2] - target[:2]))) < self.config.over_target_low_m
+        return over and obj[2] - target[2] < self.config.place_clearance_m + 0.003
+
+    def transport(self, name: str, commanded: np.ndarray, site: np.ndarray, yaw: float) -> Move:
+        c = self.config
+        kinematics = self._kinematics
+        target = self.place_target(name)
+        obj = self.physics.object_position(name)
+        carry = self.carry_height(target)
+        offset = self.held_offset(name)
+        low = obj[2] < carry - 0.01
+        distance = float(np.hypot(*(obj[:2] - target[:2])))
+        if distance < (c.over_target_low_m if low else c.over_target_m):
+            rest = target.copy()
+            rest[2] += c.place_clearance_m
+            place_yaw = self.place_yaw(name, yaw)
+            return Move(
+                "line", rest - offset, place_yaw, c.gripper_closed_rad, speed_m=0.003, stage="lower"
+            )
+        if obj[2] < carry - 0.015:
+            up = kinematics.within_reach(site, c.lift_reach_m)
+            up[2] = carry - offset[2]
+            return Move("line", up, yaw, c.gripper_closed_rad, speed_m=0.004, stage="lift")
+        # Round the shoulder pan axis: distance, bearing and height move together, the
+        # jaws turn with the bearing.
+        here = obj
+        r0, r1 = kinematics.radius(here), kinematics.radius(target)
+        b0 = kinematics.bearing(here)
+        turn = math.remainder(kinematics.bearing(target) - b0, math.tau)
+        span = math.hypot(r1 - r0, turn * max(r0, r1), carry - here[2])
+        fraction = min(1.0, c.carry_speed_m / span) if span > 0 else 1.0
+        point = kinematics.cylindrical_point(
+            r0 + fraction * (r1 - r0), b0 + fraction * turn, here[2] + fraction * (carry - here[2])
+        )
+        return Move(
+            "line",
+            point - offset,
+            yaw + fraction * turn,
+            c.gripper_closed_rad,
+            speed_m=c.carry_speed_m,
+            stage="carry",
+        )
