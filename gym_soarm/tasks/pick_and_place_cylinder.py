@@ -55,6 +55,7 @@ from gym_soarm.tasks.rewards import (
     tolerance,
 )
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, PlaceExpert
+from gym_soarm.tasks.state_expert import DEFAULT_STATE_CONFIG, PlaceStateExpert, StateExpertConfig
 
 CYLINDER_RADIUS_M = 0.0145
 CYLINDER_HALF_HEIGHT_M = 0.0275
@@ -270,6 +271,37 @@ class PickAndPlaceCylinderExpert(PlaceExpert):
         return best_yaw
 
 
+CYLINDER_STATE_CONFIG = dataclasses.replace(
+    DEFAULT_STATE_CONFIG,
+    hover_height_m=CYLINDER_EXPERT_CONFIG.hover_height_m,
+    grasp_height_m=CYLINDER_EXPERT_CONFIG.grasp_height_m,
+    carry_height_m=CYLINDER_EXPERT_CONFIG.carry_height_m,
+    retreat_height_m=CYLINDER_EXPERT_CONFIG.retreat_height_m,
+)
+"""The state expert's heights for the tall cylinder (as the scripted one's)."""
+
+
+class PickAndPlaceCylinderStateExpert(PlaceStateExpert):
+    """From the state: grasp the cylinder round its middle from the side needing least
+    wrist roll, carry it over the pad, stand it there, let go and rise."""
+
+    def __init__(self, env: gym.Env, config: StateExpertConfig = CYLINDER_STATE_CONFIG) -> None:
+        super().__init__(env, config)
+
+    def grasp_object(self) -> str:
+        return CYLINDER.name
+
+    def grasp_yaws(self, name: str) -> list[float]:
+        return [math.tau * k / _GRASP_YAW_CANDIDATES for k in range(_GRASP_YAW_CANDIDATES)]
+
+    def grasp_height(self, name: str) -> float:
+        return self.config.grasp_height_m
+
+    def place_target(self, name: str) -> np.ndarray:
+        pad = self.physics.fixture_position(PAD.name)
+        return np.array([pad[0], pad[1], constants.TABLE_TOP_Z_M + CYLINDER_HALF_HEIGHT_M])
+
+
 SPEC = TaskSpec(
     name="PickAndPlaceCylinder-v0",
     task=PickAndPlaceCylinderTask,
@@ -280,4 +312,5 @@ SPEC = TaskSpec(
     summary="pick the cylinder up and stand it upright on the purple pad",
     default_placement="uniform",
     aliases=("pick_and_place_cylinder",),
+    state_expert=PickAndPlaceCylinderStateExpert,
 )

@@ -49,6 +49,7 @@ from gym_soarm.tasks.rewards import (
     tolerance,
 )
 from gym_soarm.tasks.scripted import PlaceExpert
+from gym_soarm.tasks.state_expert import PlaceStateExpert
 
 BIN_POSITION_M: tuple[float, float, float] = (0.15, 0.30, 0.0)
 """Where the bin stands: the centre of its floor plate's underside, on the table."""
@@ -233,6 +234,23 @@ class PlaceInBinExpert(PlaceExpert):
         self._gripper(self._release_opening())
 
 
+class PlaceInBinStateExpert(PlaceStateExpert):
+    """From the state: grasp the cube, carry it over the bin above the rim, lower it in,
+    let go with the jaws half open and rise."""
+
+    def place_target(self, name: str) -> np.ndarray:
+        target = self.physics.fixture_position(BIN.name)
+        target[2] += CUBE_HALF_M
+        return target
+
+    def carry_height(self, target: np.ndarray) -> float:
+        rim = constants.TABLE_TOP_Z_M + BIN_RIM_Z_M + CARRY_RIM_CLEARANCE_M + CUBE_HALF_M
+        return max(self.config.carry_height_m, rim)
+
+    def release_opening(self) -> float:
+        return min(RELEASE_GRIPPER_RAD, self.config.gripper_open_rad)
+
+
 SPEC = TaskSpec(
     name="PlaceInBin-v0",
     task=PlaceInBinTask,
@@ -242,4 +260,5 @@ SPEC = TaskSpec(
     instructions=("Pick up the blue cube and put it in the bin.",),
     summary="put the cube into the open box",
     aliases=("bin", "place_in_bin"),
+    state_expert=PlaceInBinStateExpert,
 )

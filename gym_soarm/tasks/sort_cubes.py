@@ -60,6 +60,7 @@ from gym_soarm.tasks.rewards import (
     tolerance,
 )
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase, PlaceExpert
+from gym_soarm.tasks.state_expert import PlaceStateExpert
 
 COLOURS: tuple[str, ...] = ("red", "green", "blue")
 """The cubes' and pads' colours, in sorting order: ``<colour>_cube`` goes on ``<colour>_pad``."""
@@ -309,6 +310,23 @@ class SortCubesExpert(PlaceExpert):
         self._begin_phase()
 
 
+class SortCubesStateExpert(PlaceStateExpert):
+    """From the state: the first cube (in :data:`COLOURS` order) not yet on its pad is
+    picked and placed on it; a cube just let go is cleared before the next one."""
+
+    def _colour(self) -> str:
+        unsorted = self.env.task_logic.unsorted(self.physics)
+        return unsorted[0] if unsorted else COLOURS[-1]
+
+    def grasp_object(self) -> str:
+        return cube_name(self._colour())
+
+    def place_target(self, name: str) -> np.ndarray:
+        colour = next(c for c in COLOURS if cube_name(c) == name)
+        pad = self.physics.fixture_position(pad_name(colour))
+        return np.array([pad[0], pad[1], constants.TABLE_TOP_Z_M + CUBE_HALF_M])
+
+
 SPEC = TaskSpec(
     name="SortCubes-v0",
     task=SortCubesTask,
@@ -319,4 +337,5 @@ SPEC = TaskSpec(
     summary="sort three cubes onto the pads of their colours",
     default_placement="uniform",
     aliases=("sort_cubes",),
+    state_expert=SortCubesStateExpert,
 )

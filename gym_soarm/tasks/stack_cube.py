@@ -46,6 +46,7 @@ from gym_soarm.tasks.rewards import (
     tolerance,
 )
 from gym_soarm.tasks.scripted import PlaceExpert
+from gym_soarm.tasks.state_expert import PlaceStateExpert
 
 CUBE_MASS_KG = 0.02
 RED_CUBE = SceneObject(
@@ -215,6 +216,26 @@ class StackCubeExpert(PlaceExpert):
         self._gripper(self.config.gripper_open_rad)
 
 
+class StackCubeStateExpert(PlaceStateExpert):
+    """From the state: grasp the red cube, carry it over the blue one, turn it square to
+    it while lowering, let go and rise."""
+
+    def grasp_object(self) -> str:
+        return RED_CUBE.name
+
+    def place_target(self, name: str) -> np.ndarray:
+        target = self.physics.object_position(BLUE_CUBE.name)
+        target[2] += CUBE_SIZE_M
+        return target
+
+    def place_yaw(self, name: str, yaw: float) -> float:
+        physics = self.physics
+        turn = math.remainder(
+            physics.object_yaw(BLUE_CUBE.name) - physics.object_yaw(RED_CUBE.name), math.pi / 2
+        )
+        return yaw + turn
+
+
 SPEC = TaskSpec(
     name="StackCube-v0",
     task=StackCubeTask,
@@ -224,4 +245,5 @@ SPEC = TaskSpec(
     instructions=("Stack the red cube on top of the blue cube.",),
     summary="stack the red cube on the blue cube",
     aliases=("stack",),
+    state_expert=StackCubeStateExpert,
 )
