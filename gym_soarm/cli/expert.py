@@ -6,6 +6,9 @@ and the time taken. ``--control-mode`` makes the expert answer in another contro
 ``--protocol N`` measures it on the benchmark's protocol instead
 (:func:`gym_soarm.expert.evaluate_protocol`: episode ``k`` resets with seed
 ``EVAL_SEED + k``, as ``lerobot-eval`` runs it), the reference row of a suite's scores.
+``--perturbed [N]`` measures it from perturbed states instead
+(:mod:`gym_soarm.expert.perturbed`: random actions, a push, a dropped object, half-closed
+jaws; N episodes of each).
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from collections.abc import Sequence
 from gym_soarm.cli.options import task_selection
 from gym_soarm.control import CONTROL_MODES
 from gym_soarm.expert import EpisodeResult, evaluate, evaluate_protocol
+from gym_soarm.expert.perturbed import PERTURBATIONS, PerturbedResult, evaluate_perturbed
 from gym_soarm.tasks import get_task, task_names
 from gym_soarm.tasks.suites import EVAL_SEED, SUITE_NAMES, distinct_tasks, resolve_selection
 
@@ -63,8 +67,23 @@ def main(argv: Sequence[str] | None = None) -> None:
         default="joint_pos",
         help="the environment's control mode, in which the expert answers (default joint_pos)",
     )
+    parser.add_argument(
+        "--perturbed",
+        type=int,
+        nargs="?",
+        const=20,
+        default=None,
+        metavar="N",
+        help="instead: the success from perturbed states (random actions, a push, a dropped "
+        "object, half-closed jaws), N episodes of each per task (default 20)",
+    )
     parser.add_argument("--verbose", action="store_true", help="print every failed episode")
     args = parser.parse_args(argv)
+    if args.perturbed is not None:
+        if args.perturbed < 1:
+            parser.error(f"--perturbed must be >= 1; got {args.perturbed}")
+        if args.seeds is not None or args.protocol is not None:
+            parser.error("--perturbed runs its own episodes; drop --seeds and --protocol")
     if args.seeds is not None and args.seeds < 1:
         parser.error(f"--seeds must be >= 1; got {args.seeds}")
     if args.protocol is not None and args.protocol < 1:
@@ -75,12 +94,30 @@ def main(argv: Sequence[str] | None = None) -> None:
     for item in distinct_tasks(resolve_selection(",".join(names))):
         started = time.perf_counter()
         kwargs = {**item.variation, "control_mode": args.control_mode}
+        if args.perturbed is not None:
+            _report_perturbed(item.task, evaluate_perturbed(item.task, args.perturbed, **kwargs))
+            continue
         if args.protocol is not None:
             results = evaluate_protocol(item.task, args.protocol, **kwargs)
         else:
             results = evaluate(item.task, args.seeds, **kwargs)
         label = item.task if not item.variation else f"{item.group}/{item.task}"
         _report(label, get_task(item.task).max_episode_steps, results, started, args.verbose)
+
+
+def _report_perturbed(label: str, results: list[PerturbedResult]) -> None:
+    parts = []
+    for perturbation in PERTURBATIONS:
+        rows = [r for r in results if r.perturbation == perturbation]
+        if rows:
+            wins = sum(r.success for r in rows)
+            parts.append(f"{perturbation} {wins}/{len(rows)}")
+    wins = sum(r.success for r in results)
+    print(
+        f"{label}: {wins}/{len(results)} = {100.0 * wins / len(results):.1f} % success from "
+        f"perturbed states ({', '.join(parts)})",
+        flush=True,
+    )
 
 
 def _report(

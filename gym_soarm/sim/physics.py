@@ -473,6 +473,11 @@ class SoArmPhysics(dm_mujoco.Physics):
         index.quat[:] = quaternion
         index.qvel[:] = 0.0
 
+    def push_object(self, name: str, velocity_m_s: np.ndarray) -> None:
+        """Give object ``name`` the linear velocity ``velocity_m_s`` (a push; its pose and
+        spin stay), as a perturbation between two steps."""
+        self._object(name).qvel[:3] = velocity_m_s
+
     def fixture_position(self, name: str) -> np.ndarray:
         """World position (m) of fixture ``name``'s site (the point a task aims at)."""
         return self._fixture(name).xpos.copy()

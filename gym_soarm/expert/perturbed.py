@@ -1,0 +1,126 @@
+"""The experts from perturbed states: ``python -m gym_soarm.expert --perturbed``.
+
+A state expert (:class:`~gym_soarm.tasks.state_expert.StateExpert`) must finish from any
+reachable state, not only from a reset. Each perturbation brings an episode into a state
+the expert's own episodes never visit, then the expert acts until the episode ends:
+
+* ``random``: 10 to 40 random actions from the reset;
+* ``push``: after 20 to 120 expert steps, an object of the task gets a horizontal kick of
+  0.2 to 0.4 m/s (it slides, tips or falls out of the jaws);
+* ``drop``: once the expert holds its object, the jaws are opened for 10 steps;
+* ``jaws``: the episode starts with the jaws half closed and the arm elsewhere (15 steps
+  of a random arm move with the gripper at 0.2 rad).
+
+Tasks without an object have no ``push``, those that grasp none no ``drop``. Every perturbation is drawn from the
+episode's seed, so a run is reproducible.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+import gymnasium as gym
+import numpy as np
+
+from gym_soarm import constants
+from gym_soarm.expert import make_expert
+from gym_soarm.tasks import get_task
+from gym_soarm.validation import check_int, check_subset
+
+PERTURBATIONS: tuple[str, ...] = ("random", "push", "drop", "jaws")
+"""The perturbations :func:`evaluate_perturbed` knows."""
+
+PERTURBED_SEED = 5_000
+"""Episode ``k`` of a perturbed run resets with seed ``PERTURBED_SEED + k`` (unseen seeds)."""
+
+_N_ARM = len(constants.ARM_JOINT_NAMES)
+
+
+@dataclasses.dataclass(frozen=True)
+class PerturbedResult:
+    """One perturbed episode: which perturbation, its seed, whether it succeeded."""
+
+    perturbation: str
+    seed: int
+    success: bool
+    applied: bool
+    """False when the perturbation never happened (the episode ended before it, or the
+    expert never held its object before a ``drop``)."""
+
+
+def _hold_action(env: gym.Env, gripper_rad: float, arm_change: np.ndarray | None = None):
+    base = env.unwrapped
+    commanded = np.asarray(base.commanded_targets, dtype=np.float64)
+    targets = commanded.copy()
+    if arm_change is not None:
+        targets[:_N_ARM] += arm_change
+    targets[_N_ARM] = gripper_rad
+    return base.control.action_for_targets(targets, commanded)
+
+
+def _run(env: gym.Env, perturbation: str, seed: int) -> PerturbedResult:
+    base = env.unwrapped
+    rng = np.random.default_rng(seed)
+    expert = make_expert(env)
+    obs, info = env.reset(seed=seed)
+    objects = [item.name for item in base.task_spec.scene.objects]
+    applied = False
+    step = 0
+    kick_at = int(rng.integers(20, 121))
+    random_steps = int(rng.integers(10, 41))
+    drop_left = 10
+    env.action_space.seed(seed)
+    while True:
+        action = None
+        if perturbation == "random" and step < random_steps:
+            action, applied = env.action_space.sample(), True
+        elif perturbation == "jaws" and step < 15:
+            action = _hold_action(env, 0.2, rng.uniform(-0.03, 0.03, _N_ARM))
+            applied = True
+        elif perturbation == "push" and step == kick_at and objects:
+            name = objects[int(rng.integers(len(objects)))]
+            angle = rng.uniform(0.0, 2.0 * np.pi)
+            speed = rng.uniform(0.2, 0.4)
+            base.physics.push_object(name, np.array([np.cos(angle), np.sin(angle), 0.0]) * speed)
+            applied = True
+        elif (
+            perturbation == "drop"
+            and drop_left
+            and (applied or any(base.physics.grasped(name) for name in objects))
+        ):
+            action, applied = _hold_action(env, expert.config.gripper_open_rad), True
+            drop_left -= 1
+        if action is None:
+            action = expert(obs, info)
+        obs, _, terminated, truncated, info = env.step(action)
+        step += 1
+        if terminated or truncated:
+            return PerturbedResult(perturbation, seed, bool(info["is_success"]), applied)
+
+
+def evaluate_perturbed(
+    task: str, episodes: int = 20, perturbations: Sequence[str] = PERTURBATIONS, **env_kwargs
+) -> list[PerturbedResult]:
+    """Run ``task``'s expert after each perturbation on ``episodes`` unseen seeds.
+
+    Raises:
+        ValueError: an unknown perturbation or task, or ``episodes`` < 1.
+    """
+    spec = get_task(task)
+    episodes = check_int("episodes", episodes, 1)
+    perturbations = check_subset("perturbations", perturbations, PERTURBATIONS)
+    env = gym.make(spec.env_id, obs_type="environment_state_agent_pos", **env_kwargs)
+    try:
+        objects = bool(spec.scene.objects)
+        grasps = objects and hasattr(make_expert(env), "grasp_object")
+        return [
+            _run(env, perturbation, PERTURBED_SEED + k)
+            for perturbation in perturbations
+            if perturbation in ("random", "jaws")
+            or (perturbation == "push" and objects)
+            or (perturbation == "drop" and grasps)
+            for k in range(episodes)
+        ]
+    finally:
+        env.close()
