@@ -175,7 +175,7 @@ def test_expert_actions_are_smooth_and_never_touch_the_simulation(make_env):
 def test_expert_grasps_again_when_the_cube_slips_away(make_env):
     env = _state_env(make_env, "lift")
     physics = env.unwrapped.physics
-    expert = make_expert(env)
+    expert = make_expert(env, kind="scripted")
     obs, info = env.reset(seed=0, options={"cube_grid_position": 4, "cube_rotation_deg": 0})
     expert.reset()
     moved = False
@@ -257,7 +257,7 @@ def test_expert_picks_the_cube_up_again_after_dropping_it(make_env):
         max_episode_steps=700,
     )
     physics = env.unwrapped.physics
-    expert = make_expert(env)
+    expert = make_expert(env, kind="scripted")
     obs, info = env.reset(seed=0, options={"cube_grid_position": 0, "cube_rotation_deg": 0})
     expert.reset()
     carry_steps = 0
@@ -282,7 +282,7 @@ def test_a_phase_that_sets_no_gripper_target_keeps_the_last_one(make_env):
     """After the release, the retreat keeps the jaws open (it sets no gripper target)."""
     env = _state_env(make_env, "pick_and_place")
     base = env.unwrapped  # stepped on past success, through the retreat
-    expert = make_expert(env)
+    expert = make_expert(env, kind="scripted")
     base.reset(seed=0, options={"cube_grid_position": 4, "cube_rotation_deg": 0})
     expert.reset()
     gripper = {}

@@ -87,7 +87,9 @@ def test_tilt_cosine():
 
 
 def test_expert_uses_the_cylinder_heights_unless_given_a_config(env):
-    assert make_expert(env).config is cyl.CYLINDER_EXPERT_CONFIG
+    assert make_expert(env, kind="scripted").config is cyl.CYLINDER_EXPERT_CONFIG
+    assert make_expert(env).config is cyl.CYLINDER_STATE_CONFIG
+    assert cyl.CYLINDER_STATE_CONFIG.grasp_height_m == pytest.approx(0.03)
     assert cyl.CYLINDER_EXPERT_CONFIG.grasp_height_m == pytest.approx(0.03)
     own = ExpertConfig(carry_steps=70)
     assert make_expert(env, own).config is own

@@ -79,7 +79,7 @@ class StateExpertConfig:
     """Horizontal distance to the grasp point within which the jaws descend."""
     aligned_low_m: float = 0.015
     """The same once below the hover height (so that a descent is not broken off)."""
-    arrived_m: float = 0.004
+    arrived_m: float = 0.002
     """Distance to the grasp point (commanded and measured) at which the jaws close."""
     missed_gripper_rad: float = 0.05
     """A measured gripper angle under this, with the jaws commanded shut, is a miss."""
@@ -116,8 +116,9 @@ class Move:
     """What the expert wants this step: a target for the jaws and one for the gripper.
 
     ``kind``: ``"joint"`` (a joint-space move to the inverse kinematics of the target,
-    from an elbow-up posture: long moves), ``"line"`` (a straight line of the jaws) or
-    ``"hold"`` (the arm stays).
+    from an elbow-up posture: long moves), ``"line"`` (a straight line of the jaws),
+    ``"hold"`` (the arm stays) or ``"relax"`` (the arm's targets back towards its measured
+    joints: :meth:`StateExpert.relaxed`; ``position`` is not used).
     """
 
     kind: str
@@ -153,6 +154,13 @@ class StateExpert:
     # --- public API ------------------------------------------------------------------
     def reset(self) -> None:
         """Nothing to reset: the expert keeps no episode state."""
+
+    @property
+    def phase(self) -> str:
+        """The stage the env's current state is in (what the next action is for):
+        ``"approach"``, ``"descend"``, ``"close"``, ``"lift"``, ... ``"done"``."""
+        commanded = np.asarray(self.env.commanded_targets, dtype=np.float64)
+        return self.decide(commanded).stage
 
     def __call__(self, obs: Any = None, info: dict[str, Any] | None = None) -> np.ndarray:
         """The action (float32) for the env's current state, in its control mode and units."""
@@ -215,6 +223,8 @@ class StateExpert:
 
     # --- turning a move into targets ----------------------------------------------------
     def _arm_targets(self, move: Move, arm: np.ndarray) -> np.ndarray:
+        if move.kind == "relax":
+            return self.relaxed(arm)
         if move.kind == "hold" or move.position is None:
             return arm
         if move.kind == "joint":
@@ -222,6 +232,47 @@ class StateExpert:
         else:
             goal = self._line_step(move, arm)
         return self._limited(goal, arm)
+
+    def held_back(self, commanded: np.ndarray, distance_m: float = 0.02) -> bool:
+        """Whether the jaws are over ``distance_m`` from where the targets put them: the arm
+        pressed against something (the table, a wall) that its targets lie beyond, or
+        flung far from where it is (the servos trail their targets by millimetres)."""
+        site, _ = self.commanded_site(commanded)
+        return float(np.linalg.norm(site - self.physics.grasp_center())) > distance_m
+
+    def rise(
+        self,
+        commanded: np.ndarray,
+        height: float,
+        gripper: float,
+        yaw: float | None = None,
+        speed_m: float = 0.004,
+    ) -> Move:
+        """Rise from where the targets put the jaws to ``height``: straight up while they
+        point down (within 0.3 rad), else (a tilted, twisted posture, where straight steps
+        hardly move) a joint move to the point above, brought within reach, turned ``yaw``
+        (default: as they are)."""
+        position, rotation = self._kinematics.site_pose(commanded[:_N_ARM])
+        site_yaw = _yaw_of(rotation)
+        up = position.copy()
+        up[2] = height
+        if float(rotation[2, 2]) > math.cos(0.3):
+            return Move("line", up, site_yaw, gripper, speed_m=speed_m, stage="rise")
+        up = self._kinematics.within_reach(up, (0.12, 0.26))
+        return Move("joint", up, site_yaw if yaw is None else yaw, gripper, stage="rise")
+
+    def relaxed(self, arm: np.ndarray) -> np.ndarray:
+        """The arm's targets ``arm`` moved towards its measured joints, at most
+        ``joint_speed_rad`` a step (all joints covering the same fraction of the way).
+
+        The arm is already there, so this is no acceleration to limit: targets left deep
+        in an obstacle come back to it quickly and the arm stops pressing.
+        """
+        error = self.physics.joint_angles()[:_N_ARM] - arm
+        size = float(np.abs(error).max())
+        if size <= self.config.joint_speed_rad:
+            return arm + error
+        return arm + error * (self.config.joint_speed_rad / size)
 
     def _line_step(self, move: Move, arm: np.ndarray) -> np.ndarray:
         """The joints one straight-line step of the jaws towards ``move.position``."""

@@ -1,0 +1,147 @@
+"""Experts that act from the state (SPEC section 22): Markov, finishing from perturbed
+states, smooth, in every control mode."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import gym_soarm
+from gym_soarm.cli import expert as expert_cli
+from gym_soarm.expert import (
+    ExpertConfig,
+    StateExpert,
+    StateExpertConfig,
+    make_expert,
+    run_episode,
+)
+from gym_soarm.expert.perturbed import evaluate_perturbed
+from gym_soarm.tasks.scripted import ScriptedExpert
+
+GRASP_TASKS = ("LiftCube-v0", "PickAndPlaceCube-v0")
+
+
+def _env(task: str, **kwargs) -> gym.Env:
+    return gym.make(
+        gym_soarm.get_task(task).env_id, obs_type="environment_state_agent_pos", **kwargs
+    )
+
+
+def test_make_expert_gives_state_experts_and_the_script_on_request():
+    env = _env("LiftCube-v0")
+    try:
+        assert isinstance(make_expert(env), StateExpert)
+        assert isinstance(make_expert(env, kind="scripted"), ScriptedExpert)
+        assert isinstance(make_expert(env, ExpertConfig(carry_steps=70)), ScriptedExpert)
+        own = StateExpertConfig(line_speed_m=0.002)
+        assert make_expert(env, own).config is own
+        with pytest.raises(ValueError, match="kind"):
+            make_expert(env, kind="clock")
+        with pytest.raises(TypeError, match="StateExpertConfig"):
+            make_expert(env, {"line_speed_m": 0.002})
+        with pytest.raises(ValueError, match="joint_speed_rad must be a number > 0"):
+            StateExpertConfig(joint_speed_rad=0.0)
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("task", ("ReachTarget-v0", *GRASP_TASKS))
+def test_same_state_same_action_whatever_the_history(task):
+    """An expert that lived through an episode and one made fresh on its restored
+    snapshot answer alike, step after step, and the episodes stay identical."""
+    lived_env, fresh_env = _env(task), _env(task)
+    try:
+        lived = make_expert(lived_env)
+        obs, info = lived_env.reset(seed=7)
+        lived_env.action_space.seed(7)
+        for step in range(45):  # random actions first: a history no expert episode has
+            action = lived_env.action_space.sample() if step < 8 else lived(obs, info)
+            obs, *_, info = lived_env.step(action)
+        fresh_env.reset(options={"state": lived_env.unwrapped.save_state()})
+        fresh = make_expert(fresh_env)
+        for _ in range(30):
+            a, b = lived(), fresh()
+            np.testing.assert_array_equal(a, b)
+            first = lived_env.step(a)
+            second = fresh_env.step(b)
+            np.testing.assert_array_equal(first[0]["agent_pos"], second[0]["agent_pos"])
+            if first[2] or first[3]:
+                break
+    finally:
+        lived_env.close()
+        fresh_env.close()
+
+
+def test_asking_the_expert_changes_nothing():
+    """A call is a pure function of the state: asking twice gives the same action."""
+    env = _env("PickAndPlaceCube-v0")
+    try:
+        expert = make_expert(env)
+        obs, info = env.reset(seed=3)
+        for _ in range(60):
+            first = expert(obs, info)
+            np.testing.assert_array_equal(first, expert(obs, info))
+            obs, *_, info = env.step(first)
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("task", GRASP_TASKS)
+def test_the_expert_finishes_from_perturbed_states(task):
+    results = evaluate_perturbed(task, episodes=1)
+    assert {r.perturbation for r in results} == {"random", "push", "drop", "jaws"}
+    assert all(r.applied for r in results)
+    assert all(r.success for r in results), [r for r in results if not r.success]
+
+
+def test_servo_targets_move_within_the_speed_limits():
+    env = _env("PickAndPlaceCube-v0")
+    try:
+        expert = make_expert(env)
+        config = expert.config
+        env.reset(seed=11)
+        before = env.unwrapped.commanded_targets.copy()
+        changes = []
+        while True:
+            _, _, terminated, truncated, info = env.step(expert())
+            after = env.unwrapped.commanded_targets.copy()
+            changes.append(np.abs(after - before))
+            before = after
+            if terminated or truncated:
+                break
+        assert info["is_success"]
+        changes = np.array(changes)
+        assert changes[:, :5].max() <= config.joint_speed_rad + 1e-6  # float32 actions
+        assert changes[:, 5].max() <= config.gripper_speed_rad + 1e-6
+        # Speed builds up: no step starts from rest at full speed.
+        assert changes[0, :5].max() <= config.joint_accel_rad + 1e-6
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"control_mode": "joint_delta", "normalize_actions": True},
+        {"control_mode": "ee_delta"},
+        {"control_mode": "ee_pose", "normalize_actions": True},
+        {"units": "lerobot"},
+    ],
+)
+def test_the_expert_succeeds_in_every_control_mode_and_unit(kwargs):
+    env = _env("LiftCube-v0", **kwargs)
+    try:
+        result = run_episode(env, make_expert(env), seed=4, options=None)
+        assert result.success
+    finally:
+        env.close()
+
+
+def test_the_perturbed_report_names_each_perturbation(capsys):
+    expert_cli.main(["--perturbed", "1", "--task", "ReachTarget-v0"])
+    out = capsys.readouterr().out
+    assert out.startswith("ReachTarget-v0: 2/2 = 100.0 % success from perturbed states")
+    assert "random 1/1" in out and "jaws 1/1" in out and "push" not in out
+    with pytest.raises(SystemExit):
+        expert_cli.main(["--perturbed", "0"])
