@@ -1,10 +1,13 @@
 """``python -m gym_soarm.train`` (``gym-soarm-train``): train a state policy with
-Stable-Baselines3.
+Stable-Baselines3, or imitate the scripted expert.
 
 ``--algo ppo|sac --task T --seed S [--steps N] --out DIR``: the package's recipe for the
 algorithm and task (:mod:`gym_soarm.rl.hyperparams`), checkpoints, ``curve.csv`` and
-``curve.png`` in ``DIR`` (:func:`gym_soarm.rl.training.train`). Ctrl-C stops the run
-and keeps its last checkpoint and curve.
+``curve.png`` in ``DIR`` (:func:`gym_soarm.rl.training.train`). ``--algo bc|dagger``:
+behaviour cloning (DART noise) or DAgger from the task's expert
+(:func:`gym_soarm.rl.imitation.train_imitation`), the same files plus ``demos.npz``.
+``--algo ppo --init DIR``: PPO starting from the BC/DAgger policy in ``DIR``. Ctrl-C
+stops the run and keeps its last checkpoint and curve.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from gym_soarm.cli.options import int_at_least
-from gym_soarm.rl.hyperparams import ALGORITHMS, VEC_ENVS
+from gym_soarm.rl.hyperparams import IMITATION, TRAINERS, VEC_ENVS
 from gym_soarm.tasks import task_names
 
 
@@ -38,9 +41,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m gym_soarm.train",
         description="Train PPO or SAC on a task's state observations with the package's "
-        "recipe; writes model.zip, settings.json, curve.csv and curve.png to --out.",
+        "recipe, or imitate the task's scripted expert (bc: behaviour cloning with DART "
+        "noise, dagger: DAgger); writes model.zip, settings.json, curve.csv and curve.png "
+        "to --out.",
     )
-    parser.add_argument("--algo", required=True, choices=ALGORITHMS, help="the algorithm")
+    parser.add_argument("--algo", required=True, choices=TRAINERS, help="the algorithm")
     parser.add_argument(
         "--task", required=True, help=f"the task: {', '.join(task_names())} (or an alias)"
     )
@@ -49,14 +54,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--steps",
         type=int_at_least(1),
         default=None,
-        help="environment steps (default: the recipe's)",
+        help="environment steps (default: the recipe's; ppo and sac only)",
     )
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument(
         "--eval-every",
         type=int_at_least(1),
         default=None,
-        help="environment steps between evaluations on the protocol (default: the recipe's)",
+        help="environment steps between evaluations on the protocol (default: the recipe's; "
+        "ppo and sac only: bc and dagger evaluate after each round)",
     )
     parser.add_argument(
         "--eval-episodes",
@@ -71,14 +77,22 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         metavar="KEY=VALUE",
         help="replace recipe arguments of the algorithm, e.g. learning_rate=1e-4 "
-        "learning_starts=100 (Python literals)",
+        "learning_starts=100, or demos=50 rounds=3 for bc/dagger (Python literals)",
     )
     parser.add_argument(
         "--vec-env",
         choices=VEC_ENVS,
         default=None,
         help="how the environments are stepped: native (one process per CPU), dummy (this "
-        "process) or subproc (one process each); default: the recipe's (native)",
+        "process) or subproc (one process each); default: the recipe's (native); ppo and "
+        "sac only",
+    )
+    parser.add_argument(
+        "--init",
+        default=None,
+        metavar="DIR",
+        help="--algo ppo only: start from the policy in DIR (a bc or dagger --out folder of "
+        "the same task), with a behaviour-cloning term on its demonstrations",
     )
     parser.add_argument(
         "--no-progress", action="store_true", help="no progress bar (e.g. in log files)"
@@ -90,21 +104,46 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Train; 0 when the run finished, 130 when Ctrl-C stopped it (checkpoint kept)."""
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", force=True)
-    from gym_soarm.rl.training import train
-
     try:
-        result = train(
-            args.algo,
-            args.task,
-            args.out,
-            seed=args.seed,
-            steps=args.steps,
-            eval_every=args.eval_every,
-            eval_episodes=args.eval_episodes,
-            progress_bar=not args.no_progress,
-            hyperparams=dict(args.hyperparams),
-            vec_env=args.vec_env,
-        )
+        if args.algo in IMITATION:
+            for flag, value in (
+                ("--steps", args.steps),
+                ("--eval-every", args.eval_every),
+                ("--vec-env", args.vec_env),
+                ("--init", args.init),
+            ):
+                if value is not None:
+                    raise ValueError(
+                        f"{flag} does not apply to --algo {args.algo} (its sizes are the "
+                        "recipe's demos, rounds and episodes_per_round: --hyperparams "
+                        "demos=N ...); drop it."
+                    )
+            from gym_soarm.rl.imitation import train_imitation
+
+            result = train_imitation(
+                args.algo,
+                args.task,
+                args.out,
+                seed=args.seed,
+                eval_episodes=args.eval_episodes,
+                hyperparams=dict(args.hyperparams),
+            )
+        else:
+            from gym_soarm.rl.training import train
+
+            result = train(
+                args.algo,
+                args.task,
+                args.out,
+                seed=args.seed,
+                steps=args.steps,
+                eval_every=args.eval_every,
+                eval_episodes=args.eval_episodes,
+                progress_bar=not args.no_progress,
+                hyperparams=dict(args.hyperparams),
+                vec_env=args.vec_env,
+                init=args.init,
+            )
     except (ValueError, ImportError) as exc:
         raise SystemExit(f"python -m gym_soarm.train: error: {exc}") from None
     rate = "n/a" if result.success_rate is None else f"{100 * result.success_rate:.0f} %"

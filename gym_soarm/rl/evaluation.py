@@ -19,7 +19,7 @@ import gymnasium as gym
 import numpy as np
 
 from gym_soarm.expert import make_expert, run_episode
-from gym_soarm.rl.hyperparams import ALGORITHMS
+from gym_soarm.rl.hyperparams import POLICY_CLASSES, TRAINERS
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
 
@@ -84,10 +84,9 @@ def read_settings(folder: str | os.PathLike[str]) -> dict[str, Any]:
                 f"{settings_path}: field {key!r} must be a {kind.__name__}; got "
                 f"{settings.get(key)!r}. The file was edited or damaged; train again."
             )
-    if settings["algo"] not in ALGORITHMS:
+    if settings["algo"] not in TRAINERS:
         raise ValueError(
-            f"{settings_path}: algo must be one of {', '.join(ALGORITHMS)}; got "
-            f"{settings['algo']!r}."
+            f"{settings_path}: algo must be one of {', '.join(TRAINERS)}; got {settings['algo']!r}."
         )
     get_task(settings["task"])  # a ValueError naming the registered tasks
     return settings
@@ -129,7 +128,7 @@ class TrainedPolicy:
                 f"({len(names)}); retrain it with this version of gym-soarm."
             )
         sb3 = require_sb3()
-        algo_class = {"ppo": sb3.PPO, "sac": sb3.SAC}[settings["algo"]]
+        algo_class = getattr(sb3, POLICY_CLASSES[settings["algo"]])
         path = Path(folder)
         self.model = algo_class.load(path / MODEL_FILE, device="cpu")
         if self.model.observation_space.shape != obs_space.shape or (

@@ -11,12 +11,17 @@ task, one seed) and writes into its output folder:
 * ``curve.csv``: one row per evaluation: ``env_steps``, ``wall_s``, ``success_rate``
   (on the protocol: seeds 1000 + k), ``mean_return``, ``episodes``;
 * ``curve.png``: the success rate against environment steps and wall time.
+
+``init`` (``--algo ppo --init DIR``) starts PPO from the policy in ``DIR`` (a BC or
+DAgger folder of :mod:`gym_soarm.rl.imitation`, or another PPO run) on the same task and
+observation layout: its weights, its observation statistics, a low exploration noise
+and a behaviour-cloning term on the actor against ``DIR``'s ``demos.npz``
+(:func:`gym_soarm.rl.imitation.bc_regularized_ppo_class`; the recipe's ``init`` keys).
 """
 
 from __future__ import annotations
 
 import csv
-import dataclasses
 import importlib.util
 import json
 import logging
@@ -32,67 +37,30 @@ from typing import Any
 import numpy as np
 
 from gym_soarm import __version__
+from gym_soarm.rl.curves import (
+    CURVE_CSV,
+    CURVE_FIELDS,
+    CURVE_PNG,
+    TrainResult,
+    pyplot,
+    write_curve_png,
+)
 from gym_soarm.rl.evaluation import (
     MODEL_FILE,
     NORMALIZE_FILE,
     POLICY_FORMAT,
     SETTINGS_FILE,
     make_env,
+    read_settings,
     require_sb3,
     score,
 )
-from gym_soarm.rl.hyperparams import VEC_ENVS, recipe
+from gym_soarm.rl.hyperparams import ALGORITHMS, IMITATION, POLICY_CLASSES, VEC_ENVS, recipe
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
 from gym_soarm.validation import check_choice, check_int
 
 logger = logging.getLogger(__name__)
-
-CURVE_CSV = "curve.csv"
-CURVE_PNG = "curve.png"
-CURVE_FIELDS = ("env_steps", "wall_s", "success_rate", "mean_return", "episodes")
-
-
-@dataclasses.dataclass
-class TrainResult:
-    """What a run did: its folder, steps, wall time, last success rate and whether Ctrl-C
-    stopped it."""
-
-    out: Path
-    env_steps: int
-    wall_s: float
-    success_rate: float | None
-    interrupted: bool
-
-
-def _pyplot() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _write_curve_png(rows: list[dict[str, float]], path: Path, title: str) -> None:
-    plt = _pyplot()
-
-    steps = [r["env_steps"] for r in rows]
-    rates = [100 * r["success_rate"] for r in rows]
-    minutes = [r["wall_s"] / 60 for r in rows]
-    fig, (left, right) = plt.subplots(1, 2, figsize=(9, 3.4))
-    left.plot(steps, rates, marker="o")
-    left.set_xlabel("environment steps")
-    right.plot(minutes, rates, marker="o")
-    right.set_xlabel("wall time (min)")
-    for axis in (left, right):
-        axis.set_ylabel("success on the protocol (%)")
-        axis.set_ylim(-3, 103)
-        axis.grid(alpha=0.3)
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
 
 
 class _Run:
@@ -168,7 +136,89 @@ class _Run:
             writer.writeheader()
             writer.writerows(self.rows)
         if self.rows:
-            _write_curve_png(self.rows, self.out / CURVE_PNG, self.title)
+            write_curve_png(self.rows, self.out / CURVE_PNG, self.title)
+
+
+def _check_init(
+    init: str | os.PathLike[str],
+    task: str,
+    env_kwargs: dict[str, Any],
+    observation_names: list[str],
+    normalize: bool,
+) -> dict[str, Any]:
+    """The settings of the ``init`` folder, checked against the run's task and
+    environment; ValueError naming both sides of a difference."""
+    from gym_soarm.rl.imitation import DEMOS_FILE
+
+    settings = read_settings(init)  # ValueError: not a policy folder
+    folder = str(init)
+    if POLICY_CLASSES[settings["algo"]] != "PPO":
+        raise ValueError(
+            f"--init needs a PPO-class policy (bc, dagger or ppo); {folder!r} holds a "
+            f"{settings['algo']} policy."
+        )
+    trained = get_task(settings["task"]).name
+    if trained != task:
+        raise ValueError(
+            f"--init {folder!r} holds a policy for {trained}; got --task {task}. Start "
+            f"from a {task} policy (python -m gym_soarm.train --algo bc --task {task})."
+        )
+    if settings["observation_names"] != observation_names:
+        raise ValueError(
+            f"--init {folder!r} was trained on another observation layout "
+            f"({len(settings['observation_names'])} values) than {task} has now "
+            f"({len(observation_names)}); retrain it with this version of gym-soarm."
+        )
+    if settings["env"] != env_kwargs:
+        raise ValueError(
+            f"--init {folder!r} was trained with the environment settings "
+            f"{settings['env']}; the ppo recipe of {task} uses {env_kwargs}."
+        )
+    path = Path(init)
+    if (path / NORMALIZE_FILE).is_file() != bool(normalize):
+        raise ValueError(
+            f"--init {folder!r} {'has' if not normalize else 'has no'} {NORMALIZE_FILE} "
+            f"(observation statistics), but the ppo recipe of {task} "
+            f"{'normalises' if normalize else 'does not normalise'} observations; train "
+            "the two with matching normalisation."
+        )
+    settings["_demos"] = path / DEMOS_FILE if (path / DEMOS_FILE).is_file() else None
+    settings["_normalizer"] = path / NORMALIZE_FILE if (path / NORMALIZE_FILE).is_file() else None
+    settings["_folder"] = path
+    return settings
+
+
+def _ppo_from(source: dict[str, Any], venv: Any, seed: int, settings: dict[str, Any]) -> Any:
+    """A :class:`~gym_soarm.rl.imitation.BCRegularizedPPO` with the weights, observation
+    statistics and demonstrations of the ``--init`` folder."""
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from gym_soarm.rl.imitation import Dataset, bc_regularized_ppo_class
+
+    folder: Path = source["_folder"]
+    pretrained = PPO.load(folder / MODEL_FILE, device="cpu")
+    if isinstance(venv, VecNormalize):
+        # The pretrained actor's inputs: the demonstrations' statistics, updated from
+        # there on (their count weighs them against PPO's own observations).
+        with open(source["_normalizer"], "rb") as stream:
+            venv.obs_rms = pickle.load(stream).obs_rms.copy()
+    algo_kwargs = dict(settings["algo"])
+    algo_kwargs["policy_kwargs"] = dict(pretrained.policy_kwargs)
+    model = bc_regularized_ppo_class()("MlpPolicy", venv, seed=seed, device="cpu", **algo_kwargs)
+    model.policy.load_state_dict(pretrained.policy.state_dict())
+    init = settings["init"]
+    with torch.no_grad():
+        model.policy.log_std.fill_(float(init["log_std"]))
+    if source["_demos"] is not None:
+        demos = Dataset.load(source["_demos"])
+        model.set_demonstrations(
+            demos.obs, demos.actions, init["bc_coef"], init["bc_decay"], init["bc_batch_size"]
+        )
+    else:
+        logger.warning("--init %s has no demonstrations: PPO without the BC term", folder)
+    return model
 
 
 def train(
@@ -182,6 +232,7 @@ def train(
     progress_bar: bool = False,
     hyperparams: dict[str, Any] | None = None,
     vec_env: str | None = None,
+    init: str | os.PathLike[str] | None = None,
 ) -> TrainResult:
     """Train ``algo`` on ``task`` with the package's recipe and write its folder.
 
@@ -202,13 +253,22 @@ def train(
         vec_env: how the environments are stepped: ``"native"``, ``"dummy"`` or
             ``"subproc"`` (default: the recipe's, see :mod:`gym_soarm.rl.hyperparams`);
             the episodes and so the run are the same in all three.
+        init: PPO only: a policy folder to start from (see the module's documentation).
 
     Raises:
-        ValueError: unknown algorithm or task, a non-positive count, ``out`` a file.
+        ValueError: unknown algorithm or task, a non-positive count, ``out`` a file, an
+            ``init`` folder of another task, observation layout or environment setting.
         ImportError: Stable-Baselines3 is not installed (names the extra).
     """
     spec = get_task(task)  # ValueError naming the registered tasks
+    if algo in IMITATION:
+        raise ValueError(
+            f"algo {algo!r} is an imitation trainer: gym_soarm.rl.imitation.train_imitation "
+            f"(python -m gym_soarm.train --algo {algo}); train() runs {', '.join(ALGORITHMS)}."
+        )
     settings = recipe(algo, spec.name)  # ValueError naming the algorithms
+    if init is not None and algo != "ppo":
+        raise ValueError(f"init (--init) starts PPO only; got --algo {algo}. Pass --algo ppo.")
     seed = check_int("seed", seed, 0)
     # None takes the recipe's value.
     steps = check_int("steps", settings["steps"] if steps is None else steps, 1)
@@ -230,7 +290,7 @@ def train(
     if out_path.exists() and not out_path.is_dir():
         raise ValueError(f"out must be a folder; {str(out_path)!r} is a file. Pass a new folder.")
     sb3 = require_sb3()
-    _pyplot()  # imported before training, never in the middle of it
+    pyplot()  # imported before training, never in the middle of it
     if progress_bar and importlib.util.find_spec("rich") is None:
         warnings.warn(
             "the progress bar needs rich (pip install rich, or the rl extra); training without it.",
@@ -256,6 +316,11 @@ def train(
     probe = make_env(spec.name, env_kwargs)
     observation_names = list(probe.unwrapped.observation_names)
     probe.close()
+    source = (
+        None
+        if init is None
+        else _check_init(init, spec.name, env_kwargs, observation_names, settings["normalize"])
+    )
 
     out_path.mkdir(parents=True, exist_ok=True)
     for stale in (MODEL_FILE, NORMALIZE_FILE, CURVE_CSV, CURVE_PNG):
@@ -271,6 +336,7 @@ def train(
                 "env": env_kwargs,
                 "observation_names": observation_names,
                 "recipe": settings,
+                **({} if init is None else {"init": str(init)}),
                 "gym_soarm_version": __version__,
             },
             indent=2,
@@ -293,8 +359,11 @@ def train(
         )
     if settings["normalize"]:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=settings["algo"]["gamma"])
-    algo_class = {"ppo": sb3.PPO, "sac": sb3.SAC}[algo]
-    model = algo_class("MlpPolicy", venv, seed=seed, device="cpu", **settings["algo"])
+    if source is None:
+        algo_class = {"ppo": sb3.PPO, "sac": sb3.SAC}[algo]
+        model = algo_class("MlpPolicy", venv, seed=seed, device="cpu", **settings["algo"])
+    else:
+        model = _ppo_from(source, venv, seed, settings)
     title = f"{algo.upper()} on {spec.name}, seed {seed}"
     run = _Run(out_path, spec.name, env_kwargs, episodes, title, model)
 

@@ -1,0 +1,768 @@
+"""The expert as a teacher: behaviour cloning with DART noise, DAgger, and PPO with a
+behaviour-cloning term (SPEC 22).
+
+:func:`train_imitation` (``python -m gym_soarm.train --algo bc|dagger``) learns a state
+policy from the task's scripted expert (:func:`gym_soarm.expert.make_expert`) in the
+recipe's environment (:mod:`gym_soarm.rl.hyperparams`: state observations, normalised
+``joint_delta`` actions) and writes a policy folder as :func:`gym_soarm.rl.training.train`
+does, so ``python -m gym_soarm.evaluate``, :class:`gym_soarm.rl.evaluation.TrainedPolicy`
+and ``--algo ppo --init DIR`` load it:
+
+* ``model.zip``: the policy as a Stable-Baselines3 ``PPO`` model (``MlpPolicy``); its
+  actor (``mlp_extractor`` policy branch and ``action_net``) is trained by regression of
+  its mean action on the expert's actions, its value branch is left untrained;
+* ``vecnormalize.pkl``: observation statistics of the first demonstrations (an SB3
+  ``VecNormalize`` with ``training=False``), as PPO runs save theirs;
+* ``demos.npz``: the aggregated data set: ``obs`` (raw observations), ``actions`` (the
+  expert's clean labels), ``executed`` (the actions the environment received),
+  ``episode`` and ``round`` per step;
+* ``settings.json`` (format ``gym_soarm.policy/1``), ``curve.csv`` (one row per round:
+  ``round``, ``env_steps``, ``samples``, ``wall_s``, ``success_rate``, ``mean_return``,
+  ``episodes``) and ``curve.png``.
+
+**BC**: ``demos`` expert episodes with DART noise (the executed action is the expert's
+plus Gaussian noise of standard deviation ``dart_std``, clipped to [-1, 1]; the label is
+the clean expert action), then ``epochs`` of regression. **DAgger**: round 0 is BC on
+``demos`` episodes; in each round r = 1 .. R, ``episodes_per_round`` episodes where each
+step executes the expert's action with probability ``beta0 * beta_decay ** r`` and the
+learner's otherwise; the expert labels every visited state, the data is aggregated and
+the policy retrained (warm start, ``round_epochs``), evaluated and saved.
+
+The reset seeds of the training episodes are ``100_000 * (seed + 1) + 1_000 * round + k``:
+never the protocol's (``1000 + k``) nor another training seed's.
+
+The expert is called exactly once per step of each environment, right after the
+environment's reset (``expert.reset()``) or step: with a Markov expert (a pure function
+of the environment's state) this labels any state; the clock-based experts of earlier
+versions still label the states they are stepped through.
+
+:class:`BCRegularizedPPO` is the PPO of ``--algo ppo --init DIR``
+(:func:`gym_soarm.rl.training.train`): after each PPO update it takes as many gradient
+steps on ``bc_coef * MSE(actor mean(obs_demo), expert action)`` over minibatches of the
+demonstrations, ``bc_coef`` decaying by ``bc_decay`` per update.
+"""
+
+from __future__ import annotations
+
+import copy
+import csv
+import dataclasses
+import json
+import logging
+import os
+import pickle
+import signal
+import threading
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gym_soarm import __version__
+from gym_soarm.expert import make_expert
+from gym_soarm.rl.curves import TrainResult, pyplot, write_curve_png
+from gym_soarm.rl.evaluation import (
+    MODEL_FILE,
+    NORMALIZE_FILE,
+    POLICY_FORMAT,
+    SETTINGS_FILE,
+    make_env,
+    require_sb3,
+    score,
+)
+from gym_soarm.rl.hyperparams import IMITATION, recipe
+from gym_soarm.tasks import get_task
+from gym_soarm.tasks.suites import EVAL_SEED
+from gym_soarm.validation import ArgumentTypeError, check_int, check_number
+
+logger = logging.getLogger(__name__)
+
+DEMOS_FILE = "demos.npz"
+CURVE_CSV = "curve.csv"
+CURVE_PNG = "curve.png"
+CURVE_FIELDS = (
+    "round",
+    "env_steps",
+    "samples",
+    "wall_s",
+    "success_rate",
+    "mean_return",
+    "episodes",
+)
+SEED_STRIDE = 100_000
+"""Reset seeds of training seed ``s`` start at ``SEED_STRIDE * (s + 1)``."""
+ROUND_STRIDE = 1_000
+"""Reset seeds of round ``r`` start ``ROUND_STRIDE * r`` further on."""
+MAX_ROUNDS = SEED_STRIDE // ROUND_STRIDE - 1
+OBS_VAR_FLOOR = 1e-4
+"""The smallest variance of an observation value in the normalisation (a value the
+demonstrations never change is not blown up)."""
+
+
+def training_seeds(seed: int, round_: int, episodes: int) -> list[int]:
+    """The reset seeds of round ``round_``'s ``episodes`` training episodes."""
+    base = SEED_STRIDE * (seed + 1) + ROUND_STRIDE * round_
+    return [base + k for k in range(episodes)]
+
+
+# --------------------------------------------------------------------------- data
+
+
+@dataclasses.dataclass
+class Dataset:
+    """Steps of expert-labelled episodes: raw observations, the expert's (clean) action
+    for each, the action executed there, the episode and the round of each step."""
+
+    obs: np.ndarray
+    actions: np.ndarray
+    executed: np.ndarray
+    episode: np.ndarray
+    round: np.ndarray
+
+    @classmethod
+    def empty(cls, obs_dim: int, act_dim: int) -> Dataset:
+        return cls(
+            np.zeros((0, obs_dim), np.float32),
+            np.zeros((0, act_dim), np.float32),
+            np.zeros((0, act_dim), np.float32),
+            np.zeros(0, np.int64),
+            np.zeros(0, np.int64),
+        )
+
+    def __len__(self) -> int:
+        return len(self.obs)
+
+    def extend(self, other: Dataset) -> Dataset:
+        fields = dataclasses.fields(self)
+        return Dataset(
+            *(np.concatenate([getattr(self, f.name), getattr(other, f.name)]) for f in fields)
+        )
+
+    def save(self, path: Path) -> None:
+        np.savez_compressed(path, **dataclasses.asdict(self))
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Dataset:
+        with np.load(path) as data:
+            return cls(*(data[f.name] for f in dataclasses.fields(cls)))
+
+
+@dataclasses.dataclass
+class Collected:
+    """One call of :func:`collect`: its data, environment steps and successes."""
+
+    data: Dataset
+    env_steps: int
+    episodes: int
+    successes: int
+
+
+def collect(
+    envs: Sequence[Any],
+    experts: Sequence[Any],
+    seeds: Sequence[int],
+    rng: np.random.Generator,
+    dart_std: float = 0.0,
+    learner: Callable[[np.ndarray], np.ndarray] | None = None,
+    beta: float = 1.0,
+    round_: int = 0,
+    first_episode: int = 0,
+    stop: Callable[[], bool] | None = None,
+) -> Collected:
+    """Run one episode per seed on ``envs`` (stepped in lockstep, an expert each) and
+    record every step's observation with the expert's action as its label.
+
+    Each step executes, per environment, the expert's action plus DART noise (``N(0,
+    dart_std)``, clipped to [-1, 1]) with probability ``beta``, else ``learner``'s action
+    (``learner`` maps a batch of raw observations to actions; None: always the expert).
+    ``stop()`` true ends the collection early (the finished steps are kept).
+    """
+    pending = list(seeds)
+    n = len(envs)
+    slots: list[list[Any] | None] = [None] * n
+    obs_rows: list[np.ndarray] = []
+    label_rows: list[np.ndarray] = []
+    executed_rows: list[np.ndarray] = []
+    episode_rows: list[np.ndarray] = []
+    started = 0
+    finished = successes = steps = 0
+
+    def start(i: int) -> None:
+        nonlocal started
+        if not pending:
+            slots[i] = None
+            return
+        obs, info = envs[i].reset(seed=pending.pop(0))
+        experts[i].reset()
+        slots[i] = [obs, info, first_episode + started]
+        started += 1
+
+    for i in range(n):
+        start(i)
+    while any(slot is not None for slot in slots):
+        if stop is not None and stop():
+            break
+        active = [i for i in range(n) if slots[i] is not None]
+        obs = np.stack([slots[i][0] for i in active]).astype(np.float32)
+        labels = np.stack(
+            [np.asarray(experts[i](slots[i][0], slots[i][1]), np.float32) for i in active]
+        )
+        labels = np.clip(labels, -1.0, 1.0)
+        executed = labels
+        if dart_std > 0:
+            noise = rng.normal(0.0, dart_std, labels.shape).astype(np.float32)
+            executed = np.clip(labels + noise, -1.0, 1.0)
+        if learner is not None and beta < 1.0:
+            use_learner = rng.random(len(active)) >= beta
+            if use_learner.any():
+                executed = executed.copy()
+                executed[use_learner] = np.asarray(learner(obs[use_learner]), np.float32)
+        obs_rows.append(obs)
+        label_rows.append(labels)
+        executed_rows.append(np.asarray(executed, np.float32))
+        episode_rows.append(np.array([slots[i][2] for i in active], np.int64))
+        for j, i in enumerate(active):
+            obs_i, _, terminated, truncated, info = envs[i].step(executed[j])
+            steps += 1
+            if terminated or truncated:
+                finished += 1
+                successes += bool(info.get("is_success", False))
+                start(i)
+            else:
+                slots[i][0], slots[i][1] = obs_i, info
+    if obs_rows:
+        data = Dataset(
+            np.concatenate(obs_rows),
+            np.concatenate(label_rows),
+            np.concatenate(executed_rows),
+            np.concatenate(episode_rows),
+            np.full(sum(len(rows) for rows in obs_rows), round_, np.int64),
+        )
+    else:
+        data = Dataset.empty(envs[0].observation_space.shape[0], envs[0].action_space.shape[0])
+    return Collected(data, steps, finished, successes)
+
+
+# --------------------------------------------------------------------------- policy
+
+
+def actor_mean(policy: Any, obs: Any) -> Any:
+    """The mean action of an SB3 ``ActorCriticPolicy`` for a batch of (normalised)
+    observations, with gradients: what ``predict(deterministic=True)`` returns, unclipped."""
+    features = policy.extract_features(obs, policy.pi_features_extractor)
+    return policy.action_net(policy.mlp_extractor.forward_actor(features))
+
+
+def actor_parameters(policy: Any) -> list[Any]:
+    """The parameters of the actor: its features extractor, policy branch and action head."""
+    modules = (policy.pi_features_extractor, policy.mlp_extractor.policy_net, policy.action_net)
+    return [p for module in modules for p in module.parameters()]
+
+
+def fit(
+    policy: Any,
+    optimizer: Any,
+    obs: np.ndarray,
+    actions: np.ndarray,
+    epochs: int,
+    batch_size: int,
+    generator: Any,
+    stop: Callable[[], bool] | None = None,
+) -> float:
+    """Regress the actor's mean action on ``actions`` (MSE) for ``epochs`` passes over
+    ``obs`` (already normalised); returns the last epoch's mean loss."""
+    import torch
+
+    x = torch.as_tensor(obs, dtype=torch.float32)
+    y = torch.as_tensor(actions, dtype=torch.float32)
+    policy.set_training_mode(True)
+    loss_value = float("nan")
+    try:
+        for _ in range(epochs):
+            order = torch.randperm(len(x), generator=generator)
+            total = 0.0
+            for begin in range(0, len(x), batch_size):
+                index = order[begin : begin + batch_size]
+                loss = torch.nn.functional.mse_loss(actor_mean(policy, x[index]), y[index])
+                optimizer.zero_grad()
+                loss.backward()
+                optimizer.step()
+                total += loss.item() * len(index)
+            loss_value = total / len(x)
+            if stop is not None and stop():
+                break
+    finally:
+        policy.set_training_mode(False)
+    return loss_value
+
+
+def make_normalizer(env_factory: Callable[[], Any], obs: np.ndarray) -> Any:
+    """An SB3 ``VecNormalize`` (observations only, ``training=False``) whose statistics
+    are those of ``obs``; it wraps a one-environment ``DummyVecEnv`` of ``env_factory``."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    normalizer = VecNormalize(DummyVecEnv([env_factory]), norm_obs=True, norm_reward=False)
+    set_statistics(normalizer, obs)
+    return normalizer
+
+
+def set_statistics(normalizer: Any, obs: np.ndarray) -> None:
+    """Set ``normalizer``'s observation statistics to those of ``obs`` and freeze them."""
+    data = np.asarray(obs, np.float64)
+    normalizer.obs_rms.mean = data.mean(axis=0)
+    normalizer.obs_rms.var = np.maximum(data.var(axis=0), OBS_VAR_FLOOR)
+    normalizer.obs_rms.count = float(len(data))
+    normalizer.training = False
+
+
+def save_normalizer(normalizer: Any, path: Path) -> None:
+    """Pickle ``normalizer``'s statistics alone (its environments are not pickled)."""
+    venv, normalizer.venv = normalizer.venv, None
+    try:
+        with open(path, "wb") as stream:
+            pickle.dump(normalizer, stream)
+    finally:
+        normalizer.venv = venv
+
+
+# --------------------------------------------------------------------------- settings
+
+
+def _check_net_arch(policy_kwargs: Any) -> dict[str, Any]:
+    if not isinstance(policy_kwargs, dict):
+        raise ArgumentTypeError(
+            f"policy_kwargs must be a dict (e.g. {{'net_arch': [256, 256]}}); got {policy_kwargs!r}."
+        )
+    arch = policy_kwargs.get("net_arch", [64, 64])
+    if (
+        not isinstance(arch, (list, tuple))
+        or not arch
+        or any(isinstance(u, bool) or not isinstance(u, int) or u < 1 for u in arch)
+    ):
+        raise ValueError(
+            "policy_kwargs['net_arch'] must be a non-empty list of layer widths >= 1 (the "
+            f"actor and the value branch each get it), e.g. [256, 256]; got {arch!r}."
+        )
+    return policy_kwargs
+
+
+def check_settings(algo: str, settings: dict[str, Any]) -> dict[str, Any]:
+    """Check (and normalise) the numbers of a bc/dagger recipe; ValueError naming the key."""
+    params = settings["algo"]
+    settings["n_envs"] = check_int("n_envs", settings["n_envs"], 1)
+    settings["torch_threads"] = check_int("torch_threads", settings["torch_threads"], 1)
+    settings["eval_episodes"] = check_int("eval_episodes", settings["eval_episodes"], 1)
+    params["demos"] = check_int("demos", params["demos"], 1, ROUND_STRIDE - 1)
+    params["dart_std"] = check_number("dart_std", params["dart_std"], 0.0)
+    params["epochs"] = check_int("epochs", params["epochs"], 1)
+    params["batch_size"] = check_int("batch_size", params["batch_size"], 1)
+    params["learning_rate"] = check_number("learning_rate", params["learning_rate"], 0.0)
+    if params["learning_rate"] == 0:
+        raise ValueError("learning_rate must be a finite number > 0; got 0.")
+    params["policy_kwargs"] = _check_net_arch(params["policy_kwargs"])
+    if algo == "dagger":
+        params["rounds"] = check_int("rounds", params["rounds"], 1, MAX_ROUNDS)
+        params["episodes_per_round"] = check_int(
+            "episodes_per_round", params["episodes_per_round"], 1, ROUND_STRIDE - 1
+        )
+        params["round_epochs"] = check_int("round_epochs", params["round_epochs"], 1)
+        for key in ("beta0", "beta_decay"):
+            value = check_number(key, params[key], 0.0)
+            if value > 1:
+                raise ValueError(f"{key} must be a number from 0 to 1; got {value!r}.")
+            params[key] = value
+    return settings
+
+
+# --------------------------------------------------------------------------- Ctrl-C
+
+
+class StopOnInterrupt:
+    """Ctrl-C (SIGINT) sets a flag that the trainer polls; the run then stops cleanly
+    and keeps its checkpoint and curve."""
+
+    def __init__(self) -> None:
+        self.interrupted = False
+        self._previous: Any = None
+
+    def __enter__(self) -> StopOnInterrupt:
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._interrupt)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+
+    def _interrupt(self, signum: int, frame: Any) -> None:
+        self.interrupted = True
+
+    def __call__(self) -> bool:
+        return self.interrupted
+
+
+# --------------------------------------------------------------------------- trainer
+
+
+def train_imitation(
+    algo: str,
+    task: str,
+    out: str | os.PathLike[str],
+    seed: int = 0,
+    eval_episodes: int | None = None,
+    hyperparams: dict[str, Any] | None = None,
+) -> Any:
+    """Train ``algo`` (``"bc"`` or ``"dagger"``) on ``task`` from its scripted expert and
+    write the policy folder (see the module's documentation).
+
+    Every argument is checked before anything is built or written.
+
+    Args:
+        algo: ``"bc"`` or ``"dagger"``.
+        task: a registered task (its name, alias or id).
+        out: the output folder (created; files of an earlier run there are replaced).
+        seed: the training seed (the network, the noise, the training resets).
+        eval_episodes: protocol episodes per evaluation (default: the recipe's).
+        hyperparams: values that replace the recipe's ``algo`` keys (``{"demos": 20}``).
+
+    Returns:
+        A :class:`gym_soarm.rl.training.TrainResult` (``env_steps``: the environment
+        steps of the training episodes).
+
+    Raises:
+        ValueError: unknown algorithm or task, a bad number, ``out`` a file.
+        ImportError: Stable-Baselines3 is not installed (names the extra).
+    """
+
+    if algo not in IMITATION:
+        raise ValueError(
+            f"train_imitation trains {', '.join(IMITATION)}; got {algo!r} (PPO and SAC: "
+            "gym_soarm.rl.training.train)."
+        )
+    spec = get_task(task)  # ValueError naming the registered tasks
+    settings = recipe(algo, spec.name)
+    seed = check_int("seed", seed, 0)
+    if eval_episodes is not None:
+        settings["eval_episodes"] = eval_episodes
+    if hyperparams:
+        unknown = sorted(set(hyperparams) - set(settings["algo"]))
+        if unknown:
+            raise ValueError(
+                f"hyperparams {unknown} are not keys of the {algo} recipe; valid: "
+                f"{', '.join(sorted(settings['algo']))}."
+            )
+        settings["algo"].update(copy.deepcopy(hyperparams))
+    settings = check_settings(algo, settings)
+    params = settings["algo"]
+    out_path = Path(out)
+    if out_path.exists() and not out_path.is_dir():
+        raise ValueError(f"out must be a folder; {str(out_path)!r} is a file. Pass a new folder.")
+    sb3 = require_sb3()
+    pyplot()
+    import torch
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    torch.set_num_threads(settings["torch_threads"])
+    env_kwargs = dict(settings["env"])
+    state: dict[str, Any] = {
+        "data": None,
+        "env_steps": 0,
+        "episodes": 0,
+        "normalizer": None,
+        "model_env": None,
+        "model": None,
+        "optimizer": None,
+        "rate": None,
+    }
+    envs = [make_env(spec.name, env_kwargs) for _ in range(settings["n_envs"])]
+    try:
+        experts = [make_expert(env) for env in envs]
+        observation_names = list(envs[0].unwrapped.observation_names)
+
+        out_path.mkdir(parents=True, exist_ok=True)
+        for stale in (MODEL_FILE, NORMALIZE_FILE, DEMOS_FILE, CURVE_CSV, CURVE_PNG):
+            (out_path / stale).unlink(missing_ok=True)
+        title = f"{algo.upper() if algo == 'bc' else 'DAgger'} on {spec.name}, seed {seed}"
+
+        def env_factory() -> Any:
+            return make_env(spec.name, env_kwargs)
+
+        rng = np.random.default_rng([seed, 22])
+        generator = torch.Generator().manual_seed(seed)
+        started = time.perf_counter()
+        rows: list[dict[str, Any]] = []
+        state["data"] = Dataset.empty(len(observation_names), envs[0].action_space.shape[0])
+
+        def write_settings() -> None:
+            (out_path / SETTINGS_FILE).write_text(
+                json.dumps(
+                    {
+                        "format": POLICY_FORMAT,
+                        "algo": algo,
+                        "task": spec.name,
+                        "seed": seed,
+                        "steps": state["env_steps"],
+                        "env": env_kwargs,
+                        "observation_names": observation_names,
+                        "recipe": settings,
+                        "training_seeds": f"{SEED_STRIDE} * (seed + 1) + {ROUND_STRIDE} * round + k",
+                        "gym_soarm_version": __version__,
+                    },
+                    indent=2,
+                )
+                + "\n"
+            )
+
+        write_settings()
+
+        def build(data: Dataset) -> None:
+            """The normaliser (statistics of the first data) and the PPO model."""
+            torch.manual_seed(seed)
+            if settings["normalize"]:
+                state["normalizer"] = make_normalizer(env_factory, data.obs)
+                model_env = state["normalizer"]
+            else:
+                model_env = DummyVecEnv([env_factory])
+            state["model_env"] = model_env
+            state["model"] = sb3.PPO(
+                "MlpPolicy",
+                model_env,
+                seed=seed,
+                device="cpu",
+                n_steps=64,
+                batch_size=64,
+                learning_rate=params["learning_rate"],
+                policy_kwargs=copy.deepcopy(params["policy_kwargs"]),
+            )
+            state["optimizer"] = torch.optim.Adam(
+                actor_parameters(state["model"].policy), lr=params["learning_rate"]
+            )
+
+        def normalized(obs: np.ndarray) -> np.ndarray:
+            if state["normalizer"] is None:
+                return np.asarray(obs, np.float32)
+            return np.asarray(state["normalizer"].normalize_obs(obs), np.float32)
+
+        def learner(obs: np.ndarray) -> np.ndarray:
+            return state["model"].predict(normalized(obs), deterministic=True)[0]
+
+        def save() -> None:
+            if state["model"] is None:
+                return
+            state["model"].save(out_path / MODEL_FILE)
+            if state["normalizer"] is not None:
+                save_normalizer(state["normalizer"], out_path / NORMALIZE_FILE)
+            state["data"].save(out_path / DEMOS_FILE)
+            write_settings()
+
+        def write_curve() -> None:
+            with open(out_path / CURVE_CSV, "w", newline="") as stream:
+                writer = csv.DictWriter(stream, fieldnames=CURVE_FIELDS)
+                writer.writeheader()
+                writer.writerows(rows)
+            if rows:
+                write_curve_png(rows, out_path / CURVE_PNG, title)
+
+        def train_on_data(epochs: int, stop: StopOnInterrupt) -> float:
+            data = state["data"]
+            return fit(
+                state["model"].policy,
+                state["optimizer"],
+                normalized(data.obs),
+                data.actions,
+                epochs,
+                params["batch_size"],
+                generator,
+                stop,
+            )
+
+        def evaluate(round_: int, loss: float) -> None:
+            wall = time.perf_counter() - started
+            result = score(
+                spec.name,
+                env_kwargs,
+                lambda obs, info: learner(obs[None])[0],
+                settings["eval_episodes"],
+                EVAL_SEED,
+            )
+            state["rate"] = result["success_rate"]
+            rows.append(
+                {
+                    "round": round_,
+                    "env_steps": state["env_steps"],
+                    "samples": len(state["data"]),
+                    "wall_s": round(wall, 2),
+                    "success_rate": result["success_rate"],
+                    "mean_return": round(result["mean_return"], 4),
+                    "episodes": settings["eval_episodes"],
+                }
+            )
+            save()
+            write_curve()
+            logger.info(
+                "%s: round %d, %d samples, loss %.4f, %.0f s, success %.0f %%",
+                title,
+                round_,
+                len(state["data"]),
+                loss,
+                wall,
+                100 * result["success_rate"],
+            )
+
+        def gather(round_: int, episodes: int, beta: float, stop: StopOnInterrupt) -> None:
+            got = collect(
+                envs,
+                experts,
+                training_seeds(seed, round_, episodes),
+                rng,
+                dart_std=params["dart_std"],
+                learner=None if state["model"] is None else learner,
+                beta=beta,
+                round_=round_,
+                first_episode=state["episodes"],
+                stop=stop,
+            )
+            state["data"] = state["data"].extend(got.data)
+            state["env_steps"] += got.env_steps
+            state["episodes"] += got.episodes
+            logger.info(
+                "%s: round %d, %d episodes (beta %.2f), the executed actions succeeded in %d",
+                title,
+                round_,
+                got.episodes,
+                beta,
+                got.successes,
+            )
+
+        rounds = params["rounds"] if algo == "dagger" else 0
+        with StopOnInterrupt() as stop:
+            gather(0, params["demos"], 1.0, stop)
+            if len(state["data"]):
+                build(state["data"])
+                loss = train_on_data(params["epochs"], stop)
+                if not stop():
+                    evaluate(0, loss)
+            for round_ in range(1, rounds + 1):
+                if stop():
+                    break
+                beta = params["beta0"] * params["beta_decay"] ** round_
+                gather(round_, params["episodes_per_round"], beta, stop)
+                if stop():
+                    break
+                loss = train_on_data(params["round_epochs"], stop)
+                if not stop():
+                    evaluate(round_, loss)
+            if stop():
+                logger.warning("%s: interrupted; the checkpoint and the curve are kept", title)
+                if state["model"] is None and len(state["data"]):
+                    build(state["data"])
+                save()
+                write_curve()
+    finally:
+        for env in envs:
+            env.close()
+        if state["model_env"] is not None:
+            state["model_env"].close()
+    return TrainResult(
+        out=out_path,
+        env_steps=int(state["env_steps"]),
+        wall_s=time.perf_counter() - started,
+        success_rate=state["rate"],
+        interrupted=stop.interrupted,
+    )
+
+
+# --------------------------------------------------------------------------- PPO --init
+
+
+def bc_regularized_ppo_class() -> type:
+    """:class:`BCRegularizedPPO`, built on import of Stable-Baselines3 (which this module
+    does not need to be imported)."""
+    global BCRegularizedPPO
+    if BCRegularizedPPO is None:
+        import torch
+        from stable_baselines3 import PPO
+
+        class _BCRegularizedPPO(PPO):
+            """PPO with a behaviour-cloning term on the actor.
+
+            After each PPO update (:meth:`train`), as many gradient steps as the update
+            took (``n_epochs`` passes of minibatches), each on ``bc_coef * MSE(actor
+            mean(obs), expert action)`` over a minibatch of ``bc_batch_size``
+            demonstrations; ``bc_coef`` is then multiplied by ``bc_decay``. The
+            demonstrations' raw observations are normalised with the environment's
+            current statistics (a ``VecNormalize``) at each update.
+            """
+
+            demo_obs: np.ndarray | None = None
+            demo_actions: np.ndarray | None = None
+            bc_coef: float = 0.0
+            bc_decay: float = 1.0
+            bc_batch_size: int = 256
+
+            def set_demonstrations(
+                self,
+                obs: np.ndarray,
+                actions: np.ndarray,
+                bc_coef: float,
+                bc_decay: float,
+                bc_batch_size: int,
+            ) -> None:
+                self.demo_obs = np.asarray(obs, np.float32)
+                self.demo_actions = np.asarray(actions, np.float32)
+                self.bc_coef = float(bc_coef)
+                self.bc_decay = float(bc_decay)
+                self.bc_batch_size = int(bc_batch_size)
+
+            def _excluded_save_params(self) -> list[str]:
+                return [*super()._excluded_save_params(), "demo_obs", "demo_actions"]
+
+            def train(self) -> None:
+                super().train()
+                if self.demo_obs is None or not len(self.demo_obs) or self.bc_coef <= 0:
+                    return
+                normalizer = self.get_vec_normalize_env()
+                obs = self.demo_obs
+                if normalizer is not None:
+                    obs = normalizer.normalize_obs(obs)
+                x = torch.as_tensor(np.asarray(obs, np.float32), device=self.device)
+                y = torch.as_tensor(self.demo_actions, device=self.device)
+                steps = self.n_epochs * max(1, self.rollout_buffer.buffer_size
+                                            * self.rollout_buffer.n_envs // self.batch_size)  # fmt: skip
+                self.policy.set_training_mode(True)
+                losses = []
+                for _ in range(steps):
+                    index = torch.randint(len(x), (min(self.bc_batch_size, len(x)),))
+                    loss = torch.nn.functional.mse_loss(actor_mean(self.policy, x[index]), y[index])
+                    self.policy.optimizer.zero_grad()
+                    (self.bc_coef * loss).backward()
+                    torch.nn.utils.clip_grad_norm_(self.policy.parameters(), self.max_grad_norm)
+                    self.policy.optimizer.step()
+                    losses.append(loss.item())
+                self.policy.set_training_mode(False)
+                self.logger.record("train/bc_loss", float(np.mean(losses)))
+                self.logger.record("train/bc_coef", self.bc_coef)
+                self.bc_coef *= self.bc_decay
+
+        _BCRegularizedPPO.__name__ = _BCRegularizedPPO.__qualname__ = "BCRegularizedPPO"
+        BCRegularizedPPO = _BCRegularizedPPO
+    return BCRegularizedPPO
+
+
+BCRegularizedPPO: Any = None
+"""The PPO subclass of ``--init`` (see :func:`bc_regularized_ppo_class`); None until
+that function first builds it."""
+
+
+__all__ = [
+    "DEMOS_FILE",
+    "Dataset",
+    "actor_mean",
+    "bc_regularized_ppo_class",
+    "collect",
+    "fit",
+    "train_imitation",
+    "training_seeds",
+]
