@@ -94,7 +94,7 @@ def test_drawer_rests_closed_and_untouched_at_reset(env):
 def test_drawer_stays_where_the_expert_leaves_it(env):
     base = env.unwrapped
     physics = base.physics
-    expert = make_expert(env)
+    expert = make_expert(env, kind="scripted")
     obs, info = env.reset(seed=5)
     expert.reset()
     first_success = None

@@ -58,6 +58,7 @@ from gym_soarm.tasks.base import (
 )
 from gym_soarm.tasks.rewards import norm, reach_closeness
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase, ScriptedExpert
+from gym_soarm.tasks.state_expert import Move, StateExpert
 
 # --- the cabinet (its frame: origin on the table under its centre, -y out of its front) ---
 CABINET_HALF_WIDTH_M = 0.075
@@ -409,6 +410,151 @@ class OpenDrawerExpert(ScriptedExpert):
         self._gripper(self.open_rad)
 
 
+_N_ARM = len(constants.ARM_JOINT_NAMES)
+"""Where the gripper comes among the joints."""
+PULL_TO_M = OpenDrawerExpert.pull_m
+"""The opening the state expert's pull aims for (m)."""
+LET_GO_M = OPEN_SUCCESS_M + 0.01
+"""From this opening on (m) the state expert lets go of the handle."""
+SAFE_HEIGHT_M = 0.11
+"""Height of ``grasp_center`` for jaws over the cabinet: their tips clear its walls."""
+PULL_SPEED_M = 0.002
+"""Fastest straight move of the jaws while pulling (m per step)."""
+HANDLE_MISSED_RAD = -0.12
+"""A measured gripper angle under this, with the jaws commanded shut, closed on nothing
+(on the bar the jaws stop at about -0.05 rad)."""
+
+
+class OpenDrawerStateExpert(StateExpert):
+    """From the state: come over the handle, lower the open jaws round the bar, close,
+    pull along the slide until the drawer is open, let go and rise.
+
+    The figures (yaw along the slide, grasp point, heights, opening) are
+    :class:`OpenDrawerExpert`'s. Each step reads the drawer's opening, where its handle is
+    and whether the jaws hold the bar (commanded shut, round the bar and touching it);
+    holding it they pull it towards the opening :data:`PULL_TO_M`, otherwise they (re)grasp
+    the handle wherever it is now.
+    """
+
+    hover_height_m = OpenDrawerExpert.hover_height_m
+    retreat_height_m = OpenDrawerExpert.retreat_height_m
+    open_rad = OpenDrawerExpert.open_rad
+    fixed_jaw_gap_m = OpenDrawerExpert.fixed_jaw_gap_m
+
+    def decide(self, commanded: np.ndarray) -> Move:
+        c = self.config
+        physics = self.physics
+        slide = slide_direction(physics)
+        outward = -slide
+        grasp_yaw = math.atan2(outward[1], outward[0])
+        handle = physics.fixture_position(DRAWER.name)
+        opening = physics.fixture_joint_position(DRAWER.name)
+        site, yaw = self.commanded_site(commanded)
+        measured = physics.grasp_center()
+        gripper_command = float(commanded[_N_ARM])
+        gripper_measured = float(physics.joint_angles()[_N_ARM])
+        if self.held_back(commanded):  # targets far off (pressed on something): relax first
+            return Move("relax", None, yaw, float(commanded[_N_ARM]), stage="relax")
+        if opening >= LET_GO_M:
+            return self._let_go(site, yaw, gripper_measured)
+        shut = gripper_command <= c.gripper_closed_rad + 0.05
+        around = (
+            float(np.hypot(*(measured[:2] - handle[:2]))) < 0.02
+            and abs(float(measured[2] - handle[2])) < 0.012
+        )
+        if shut and around and any(physics.jaw_contacts_with(handle_geoms(physics))):
+            pull = measured + (PULL_TO_M - opening) * slide
+            pull[2] = handle[2]
+            return Move(
+                "line", pull, grasp_yaw, c.gripper_closed_rad, speed_m=PULL_SPEED_M, stage="pull"
+            )
+        return self._approach(handle, outward, grasp_yaw, site, measured, commanded)
+
+    def _approach(
+        self,
+        handle: np.ndarray,
+        outward: np.ndarray,
+        grasp_yaw: float,
+        site: np.ndarray,
+        measured: np.ndarray,
+        commanded: np.ndarray,
+    ) -> Move:
+        """Come over the handle with the jaws open, lower them round the bar and close."""
+        c = self.config
+        gripper_command = float(commanded[_N_ARM])
+        gripper_measured = float(self.physics.joint_angles()[_N_ARM])
+        # The fixed pad's inner face sits 15 mm behind grasp_center along -x.
+        pad_offset = 0.015 - HANDLE_HALF_M[1] - self.fixed_jaw_gap_m
+        grasp = handle + pad_offset * outward
+        hover = grasp.copy()
+        hover[2] = self.hover_height_m
+        # Jaws over the cabinet rise higher, their tips clear of its walls, before they swing.
+        over = self._over_cabinet(site, outward) or self._over_cabinet(measured, outward)
+        top = SAFE_HEIGHT_M if over else self.hover_height_m
+        low = site[2] < top - 0.01
+        offset = float(np.hypot(*(site[:2] - grasp[:2])))
+        if not low:  # start a descent only once the jaws are there, not just commanded there
+            offset = max(offset, float(np.hypot(*(measured[:2] - grasp[:2]))))
+        yaw_error = abs(math.remainder(self.commanded_site(commanded)[1] - grasp_yaw, math.tau))
+        # Jaws held up by something (the bar's top): not aligned, rise again.
+        blocked = measured[2] - site[2] > 0.012
+        aligned = (
+            offset < (c.aligned_low_m if low else c.aligned_m)
+            and yaw_error < (0.2 if low else 0.08)
+            and not blocked
+        )
+        is_open = gripper_command >= self.open_rad - 0.05
+        opening = gripper_command > gripper_measured + 0.02
+        closing = not is_open and not opening
+        at_grasp = (
+            float(np.linalg.norm(site - grasp)) < c.arrived_m
+            and float(np.linalg.norm(measured - grasp)) < 2.5 * c.arrived_m
+        )
+        if closing and aligned and low:
+            shut = gripper_command <= c.gripper_closed_rad + 0.01
+            if shut and gripper_measured < HANDLE_MISSED_RAD:
+                return Move("hold", None, grasp_yaw, self.open_rad, stage="missed")
+            return Move("hold", None, grasp_yaw, c.gripper_closed_rad, stage="close")
+        if aligned and is_open:
+            if at_grasp:
+                return Move("hold", None, grasp_yaw, c.gripper_closed_rad, stage="close")
+            return Move("line", grasp, grasp_yaw, self.open_rad, stage="descend")
+        if low and not aligned:
+            return self.rise(commanded, top, self.open_rad, grasp_yaw)
+        # A joint move all the way to the hover posture (the one the descent starts from:
+        # straighter moves there tilt the wrist and can catch the drawer's front).
+        if over:  # first out of the cabinet's way, above the hover point
+            hover[2] = SAFE_HEIGHT_M
+        hover_q, _ = self.solve(hover, grasp_yaw)
+        if float(np.abs(hover_q - commanded[:_N_ARM]).max()) > 2e-3:
+            return Move("joint", hover, grasp_yaw, self.open_rad, stage="approach")
+        return Move("line", hover, grasp_yaw, self.open_rad, stage="align")
+
+    def _over_cabinet(self, point: np.ndarray, inward: np.ndarray) -> bool:
+        """Whether ``point`` lies over the cabinet or its drawer or near them (6 cm round
+        the sides and back, 1.2 cm in front of the drawer's front as it is now)."""
+        physics = self.physics
+        cabinet = physics.fixture_body_pose(CABINET.name)[0]
+        relative = point[:2] - cabinet[:2]
+        depth = float(relative @ inward[:2])
+        side = abs(float(relative[0] * inward[1] - relative[1] * inward[0]))
+        front = -FRONT_FACE_Y_M + physics.fixture_joint_position(DRAWER.name) + 0.012
+        margin = 0.06
+        return (
+            side < CABINET_HALF_WIDTH_M + margin and -front < depth < CABINET_HALF_DEPTH_M + margin
+        )
+
+    def _let_go(self, site: np.ndarray, yaw: float, gripper_measured: float) -> Move:
+        """Open the jaws, then rise until their tips clear the bar, and stay."""
+        if gripper_measured < self.open_rad - 0.1:
+            return Move("hold", None, yaw, self.open_rad, stage="release")
+        if site[2] >= self.retreat_height_m - 0.003:
+            return Move("hold", None, yaw, self.open_rad, stage="done")
+        up = site.copy()
+        up[2] = self.retreat_height_m
+        return Move("line", up, yaw, self.open_rad, stage="retreat")
+
+
 SPEC = TaskSpec(
     name="OpenDrawer-v0",
     task=OpenDrawerTask,
@@ -419,4 +565,5 @@ SPEC = TaskSpec(
     summary="pull the cabinet's drawer open by at least 6 cm",
     default_placement="uniform",
     aliases=("open_drawer",),
+    state_expert=OpenDrawerStateExpert,
 )

@@ -51,6 +51,7 @@ from gym_soarm.tasks.rewards import (
     tolerance,
 )
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, NoGraspExpert, Phase
+from gym_soarm.tasks.state_expert import Move, StateExpert
 
 TARGET_HALF_M = 0.035
 """Half the side of the green square."""
@@ -308,6 +309,163 @@ class PushExpert(NoGraspExpert):
         self._line_move(site, self._yaw)
 
 
+_N_ARM = len(constants.ARM_JOINT_NAMES)
+"""Where the gripper comes among the joints."""
+PUSH_HOVER_M = PUSH_HEIGHT_M + HOVER_ABOVE_M
+"""Height of grasp_center while coming over the push's start (the scripted hover)."""
+PUSH_ALIGNED_M = (0.005, 0.012)
+"""Sideways distance of the jaws from the push line within which they descend (high) and
+within which they keep pushing (low)."""
+PUSH_YAW_ALIGNED_RAD = (0.08, 0.25)
+"""The same for the jaws' yaw against the push's yaw."""
+PUSH_BEHIND_M = (-0.015, 0.06)
+"""Gap between the leading jaw and the cube's near face within which low jaws push."""
+PUSH_SPEED_M = 0.0025
+"""Fastest straight move of the jaws while pushing (m per step)."""
+TOUCH_SPEED_M = 0.0015
+"""Speed of the jaws as they meet the cube."""
+CENTRED_M = 0.005
+"""The push stops once the cube's centre is this close to the square's centre ..."""
+CENTRED_LOOSE_M = 0.02
+"""... or this close while the jaws are not at the cube, pushing."""
+ENGAGED_GAP_M = 0.01
+"""Jaws low, aligned and within this gap of the cube are pushing it."""
+CLEAR_RADIUS_M = 0.06
+"""After the push the jaws back off to this horizontal distance from the cube's centre."""
+
+
+class PushStateExpert(StateExpert):
+    """From the state: come down behind the cube on the line to the square, push along it.
+
+    Each step draws the push line from the cube's centre, as it is now, to the square's
+    centre and the start of a push on it (the closed jaws behind the cube, leading with
+    the jaw the wrist reaches with less roll, as :class:`PushExpert` does). Low jaws on
+    that line behind the cube push it towards the point that brings its centre onto the
+    square's; jaws anywhere else rise, swing over the start and come down. Once the cube
+    is centred the jaws back off and rise; they never close on it.
+    """
+
+    def _leading(self, cube: np.ndarray, direction: np.ndarray) -> list[tuple[float, float]]:
+        """The two ways of pushing along ``direction``: (yaw, how far the leading face
+        lies ahead of grasp_center)."""
+        heading = math.atan2(direction[1], direction[0])
+        return [(heading + math.pi, FIXED_FACE_AHEAD_M), (heading, MOVING_FACE_AHEAD_M)]
+
+    def _extent(self, direction: np.ndarray) -> float:
+        """How far the cube reaches from its centre towards the jaws, along ``direction``."""
+        heading = math.atan2(direction[1], direction[0])
+        turn = self.physics.object_yaw(CUBE.name) - heading
+        return CUBE_HALF_M * (abs(math.cos(turn)) + abs(math.sin(turn)))
+
+    def _start(self, cube: np.ndarray, direction: np.ndarray, ahead: float) -> np.ndarray:
+        start = cube.copy()
+        start[:2] -= (self._extent(direction) + ahead + PUSH_CLEARANCE_M) * direction
+        start[2] = PUSH_HEIGHT_M
+        return start
+
+    def decide(self, commanded: np.ndarray) -> Move:
+        c = self.config
+        physics = self.physics
+        closed = c.gripper_closed_rad
+        cube = physics.object_position(CUBE.name)
+        target = physics.fixture_position(TARGET.name)
+        site, yaw = self.commanded_site(commanded)
+        measured = physics.grasp_center()
+        offset = target[:2] - cube[:2]
+        to_go = float(np.hypot(*offset))
+        low = site[2] < PUSH_HOVER_M - 0.01
+        # The push line: from the cube's centre to the square's (any line once there).
+        direction = offset / to_go if to_go > 1e-6 else np.array([0.0, 1.0])
+        # Which jaw leads: the one the jaws already turn to when close, else least roll.
+        options = self._leading(cube, direction)
+        near = low or float(np.hypot(*(site[:2] - cube[:2]))) < 0.06
+        if near:
+            push_yaw, ahead = min(
+                options, key=lambda option: abs(math.remainder(option[0] - yaw, math.tau))
+            )
+        else:
+            push_yaw, ahead = min(
+                options,
+                key=lambda option: self.solve(self._start(cube, direction, option[1]), option[0])[
+                    1
+                ],
+            )
+        extent = self._extent(direction)
+        # Where the jaws stand against the line: sideways, and the gap ahead to the cube.
+        relative = site[:2] - cube[:2]
+        sideways = abs(float(relative[0] * direction[1] - relative[1] * direction[0]))
+        gap = -float(relative @ direction) - extent - ahead
+        yaw_error = abs(math.remainder(yaw - push_yaw, math.tau))
+        engaged = (
+            low
+            and sideways < PUSH_ALIGNED_M[1]
+            and yaw_error < PUSH_YAW_ALIGNED_RAD[1]
+            and PUSH_BEHIND_M[0] < gap < ENGAGED_GAP_M
+        )
+        if self.held_back(commanded):  # targets far off (pressed on something): relax first
+            return Move("relax", None, yaw, closed, stage="relax")
+        if to_go < CENTRED_M or (to_go < CENTRED_LOOSE_M and not engaged):
+            return self._back_off(cube, site, yaw)
+        start = self._start(cube, direction, ahead)
+        hover = start.copy()
+        hover[2] = PUSH_HOVER_M
+        shut = float(physics.joint_angles()[_N_ARM]) < closed + 0.15
+        if low:
+            aligned = (
+                sideways < PUSH_ALIGNED_M[1]
+                and yaw_error < PUSH_YAW_ALIGNED_RAD[1]
+                and PUSH_BEHIND_M[0] < gap < PUSH_BEHIND_M[1]
+                and measured[2] - site[2] < 0.012  # not held up by the cube's top
+            )
+            if not aligned:
+                return self.rise(commanded, PUSH_HOVER_M, closed, push_yaw)
+            if site[2] > PUSH_HEIGHT_M + 0.003:
+                down = site.copy()
+                down[2] = PUSH_HEIGHT_M
+                return Move("line", down, push_yaw, closed, stage="descend")
+            # Push: the jaws' leading face to where the cube's near face is once its
+            # centre is on the square's (at least as far as the cube has still to go).
+            along = float(site[:2] @ direction)
+            goal_along = max(
+                float(target[:2] @ direction) - extent - ahead, along + to_go - CENTRED_M / 2
+            )
+            goal = site.copy()
+            goal[:2] += (goal_along - along) * direction
+            goal[2] = PUSH_HEIGHT_M
+            # Back onto the line, sideways, as the jaws go.
+            goal[:2] += self._line_point(cube, direction, goal[:2]) - goal[:2]
+            speed = TOUCH_SPEED_M if gap > 0.0 and gap < 0.006 else PUSH_SPEED_M
+            speed = min(speed, max(0.0005, 0.25 * (goal_along - along)))
+            return Move("line", goal, push_yaw, closed, speed_m=speed, stage="push")
+        # High: over the start, then straight down once the jaws are there (measured too).
+        horizontal = max(
+            float(np.hypot(*(site[:2] - start[:2]))), float(np.hypot(*(measured[:2] - start[:2])))
+        )
+        if horizontal < PUSH_ALIGNED_M[0] and yaw_error < PUSH_YAW_ALIGNED_RAD[0] and shut:
+            return Move("line", start, push_yaw, closed, stage="descend")
+        if float(np.linalg.norm(site - hover)) > 0.02:
+            return Move("joint", hover, push_yaw, closed, stage="approach")
+        return Move("line", hover, push_yaw, closed, stage="align")
+
+    @staticmethod
+    def _line_point(cube: np.ndarray, direction: np.ndarray, point: np.ndarray) -> np.ndarray:
+        """The point of the push line nearest ``point`` (horizontal)."""
+        return cube[:2] + float((point - cube[:2]) @ direction) * direction
+
+    def _back_off(self, cube: np.ndarray, site: np.ndarray, yaw: float) -> Move:
+        """Draw the jaws back from the cube and up, then hold."""
+        closed = self.config.gripper_closed_rad
+        away = site[:2] - cube[:2]
+        distance = float(np.hypot(*away))
+        if distance >= CLEAR_RADIUS_M - 0.005 and site[2] >= PUSH_HOVER_M - 0.01:
+            return Move("hold", None, yaw, closed, stage="done")
+        clear = site.copy()
+        if distance > 1e-6:
+            clear[:2] = cube[:2] + away * (max(distance, CLEAR_RADIUS_M) / distance)
+        clear[2] = max(site[2], PUSH_HOVER_M)
+        return Move("line", clear, yaw, closed, speed_m=0.003, stage="back off")
+
+
 SPEC = TaskSpec(
     name="PushCube-v0",
     task=PushTask,
@@ -318,4 +476,5 @@ SPEC = TaskSpec(
     summary="push the cube along the table onto the green square",
     default_placement="uniform",
     aliases=("push",),
+    state_expert=PushStateExpert,
 )

@@ -117,8 +117,9 @@ class Move:
 
     ``kind``: ``"joint"`` (a joint-space move to the inverse kinematics of the target,
     from an elbow-up posture: long moves), ``"line"`` (a straight line of the jaws),
-    ``"hold"`` (the arm stays) or ``"relax"`` (the arm's targets back towards its measured
-    joints: :meth:`StateExpert.relaxed`; ``position`` is not used).
+    ``"hold"`` (the arm stays), ``"relax"`` (the arm's targets back towards its measured
+    joints: :meth:`StateExpert.relaxed`; ``position`` is not used) or ``"posture"`` (a
+    joint-space move to the arm joints given as ``position``).
     """
 
     kind: str
@@ -225,6 +226,8 @@ class StateExpert:
     def _arm_targets(self, move: Move, arm: np.ndarray) -> np.ndarray:
         if move.kind == "relax":
             return self.relaxed(arm)
+        if move.kind == "posture" and move.position is not None:
+            return self._limited(np.asarray(move.position, dtype=np.float64), arm)
         if move.kind == "hold" or move.position is None:
             return arm
         if move.kind == "joint":
@@ -249,16 +252,24 @@ class StateExpert:
         speed_m: float = 0.004,
     ) -> Move:
         """Rise from where the targets put the jaws to ``height``: straight up while they
-        point down (within 0.3 rad), else (a tilted, twisted posture, where straight steps
-        hardly move) a joint move to the point above, brought within reach, turned ``yaw``
-        (default: as they are)."""
+        point down (within 0.3 rad) 12 to 26 cm from the shoulder pan axis; stretched out
+        beyond 28 cm, a joint move towards the home posture (the arm straight up, turned
+        as it is: it lifts the jaws out of where they reach into); else (a tilted posture,
+        where straight steps hardly move) a joint move to the point above, brought within
+        that reach, turned ``yaw`` (default: as they are)."""
         position, rotation = self._kinematics.site_pose(commanded[:_N_ARM])
         site_yaw = _yaw_of(rotation)
         up = position.copy()
         up[2] = height
-        if float(rotation[2, 2]) > math.cos(0.3):
+        reach = (0.12, 0.26)
+        radius = self._kinematics.radius(position)
+        if radius > reach[1] + 0.02:  # stretched out: up towards the home posture first
+            home = np.zeros(_N_ARM)
+            home[0] = commanded[0]
+            return Move("posture", home, site_yaw, gripper, stage="rise")
+        if float(rotation[2, 2]) > math.cos(0.3) and radius >= reach[0]:
             return Move("line", up, site_yaw, gripper, speed_m=speed_m, stage="rise")
-        up = self._kinematics.within_reach(up, (0.12, 0.26))
+        up = self._kinematics.within_reach(up, reach)
         return Move("joint", up, site_yaw if yaw is None else yaw, gripper, stage="rise")
 
     def relaxed(self, arm: np.ndarray) -> np.ndarray:
