@@ -26,7 +26,7 @@ def _curve(folder: Path) -> list[dict[str, float]]:
 
 def summarize(root: Path) -> dict[str, dict]:
     groups: dict[tuple[str, str], list[Path]] = defaultdict(list)
-    for settings_path in sorted(root.glob("*/settings.json")):
+    for settings_path in sorted(root.rglob("settings.json")):
         settings = json.loads(settings_path.read_text())
         if (settings_path.parent / "curve.csv").is_file():
             groups[(settings["algo"], settings["task"])].append(settings_path.parent)

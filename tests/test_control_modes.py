@@ -263,7 +263,13 @@ def test_the_expert_succeeds_in_every_mode_as_in_joint_pos(make_env, task, unit)
         assert all(success for success, _ in results), (mode, results)
         steps = np.array([s for _, s in results])
         reference = np.array([s for _, s in outcomes["joint_pos"]])
-        assert np.abs(steps - reference).max() <= 3, (mode, steps, reference)
+        # The state expert re-reads the state each step: the modes' float rounding may
+        # shift an episode by a few steps, never its outcome.
+        assert (np.abs(steps - reference) <= np.maximum(3, 0.05 * reference)).all(), (
+            mode,
+            steps,
+            reference,
+        )
 
 
 def test_the_experts_ee_actions_stay_in_the_box_and_a_larger_move_is_split(make_env):

@@ -275,6 +275,17 @@ def test_ee_delta_straight_line_reaches_targets_that_need_the_pitch_to_yield(see
     assert abs(info["end_pose"][3] - info["start_pose"][3]) > 0.05  # the pitch yielded
 
 
+@pytest.mark.parametrize("seed", [0, 16, 43, 103, 106, 113])
+def test_ee_delta_straight_line_does_not_fold_into_a_corner(seed):
+    # Holding the level pitch on the way to these low, near targets folded the elbow
+    # and the wrist onto their limits; the way on was a 2.7 rad swing that the servos
+    # lagged behind, the commanded pose ran off through the table, and the jaws stalled
+    # 2 to 8 cm short. The pitch now yields before the joints come within
+    # JOINT_MARGIN_RAD of their limits, and the jaws arrive.
+    info = _straight_line_episode(seed)
+    assert info["is_success"], info["target_distance"]
+
+
 def test_ee_delta_keeps_the_pitch_where_it_can():
     env = _make("ReachTarget-v0", obs_type="state", control_mode="ee_delta")
     try:
