@@ -140,7 +140,7 @@ HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
             "normalize": True,
             "eval_episodes": 20,
             "algo": {
-                "demos": 100,
+                "demos": 200,
                 "dart_std": 0.05,
                 "epochs": 200,
                 "batch_size": 256,

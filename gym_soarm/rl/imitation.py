@@ -330,6 +330,20 @@ def save_normalizer(normalizer: Any, path: Path) -> None:
 # --------------------------------------------------------------------------- settings
 
 
+ACTIVATIONS: tuple[str, ...] = ("tanh", "relu")
+"""The hidden layers' activation a recipe may name (``policy_kwargs["activation_fn"]``)."""
+
+
+def torch_policy_kwargs(policy_kwargs: dict[str, Any]) -> dict[str, Any]:
+    """SB3's ``policy_kwargs`` for a recipe's: the activation's name becomes its class."""
+    import torch
+
+    kwargs = copy.deepcopy(policy_kwargs)
+    name = kwargs.pop("activation_fn", "tanh")
+    kwargs["activation_fn"] = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}[name]
+    return kwargs
+
+
 def _check_net_arch(policy_kwargs: Any) -> dict[str, Any]:
     if not isinstance(policy_kwargs, dict):
         raise ArgumentTypeError(
@@ -344,6 +358,17 @@ def _check_net_arch(policy_kwargs: Any) -> dict[str, Any]:
         raise ValueError(
             "policy_kwargs['net_arch'] must be a non-empty list of layer widths >= 1 (the "
             f"actor and the value branch each get it), e.g. [256, 256]; got {arch!r}."
+        )
+    activation = policy_kwargs.get("activation_fn", "tanh")
+    if activation not in ACTIVATIONS:
+        raise ValueError(
+            f"policy_kwargs['activation_fn'] must be one of {', '.join(ACTIVATIONS)}; got "
+            f"{activation!r}."
+        )
+    unknown = sorted(set(policy_kwargs) - {"net_arch", "activation_fn"})
+    if unknown:
+        raise ValueError(
+            f"policy_kwargs takes net_arch and activation_fn; got also {unknown}. Remove them."
         )
     return policy_kwargs
 
@@ -534,7 +559,7 @@ def train_imitation(
                 n_steps=64,
                 batch_size=64,
                 learning_rate=params["learning_rate"],
-                policy_kwargs=copy.deepcopy(params["policy_kwargs"]),
+                policy_kwargs=torch_policy_kwargs(params["policy_kwargs"]),
             )
             state["optimizer"] = torch.optim.Adam(
                 actor_parameters(state["model"].policy), lr=params["learning_rate"]

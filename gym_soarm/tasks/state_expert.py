@@ -53,7 +53,7 @@ class StateExpertConfig:
     """Height of ``grasp_center`` above the table while coming over an object."""
     grasp_height_m: float = 0.018
     """Height of ``grasp_center`` when closing on an object on the table."""
-    fixed_jaw_clearance_m: float = 0.004
+    fixed_jaw_clearance_m: float = 0.007
     """Gap left between the fixed jaw and the object while descending."""
     carry_height_m: float = 0.075
     """Height of a held object's centre while carrying it (and of the lift target)."""
@@ -63,7 +63,7 @@ class StateExpertConfig:
     """Height of the object's bottom above its resting place when the jaws let go."""
     retreat_height_m: float = 0.10
     """Height of ``grasp_center`` after a release."""
-    gripper_open_rad: float = 0.6
+    gripper_open_rad: float = 0.8
     gripper_closed_rad: float = -0.17453
     joint_speed_rad: float = 0.05
     """Fastest change of an arm joint's target per step."""
@@ -429,6 +429,9 @@ class GraspExpert(StateExpert):
             float(np.linalg.norm(site - grasp)) < c.arrived_m
             and float(np.linalg.norm(measured - grasp)) < 2.5 * c.arrived_m
         )
+        if not closing and float(np.linalg.norm(site - measured)) > 0.012:
+            # Targets pressed deep into the object or the table: back to where the jaws are.
+            return Move("relax", None, yaw, gripper_command, stage="rise")
         if closing and aligned and low:
             shut = gripper_command <= c.gripper_closed_rad + 0.01
             if shut and gripper_measured < c.missed_gripper_rad:
