@@ -263,9 +263,10 @@ def test_the_expert_succeeds_in_every_mode_as_in_joint_pos(make_env, task, unit)
         assert all(success for success, _ in results), (mode, results)
         steps = np.array([s for _, s in results])
         reference = np.array([s for _, s in outcomes["joint_pos"]])
-        # The state expert re-reads the state each step: the modes' float rounding may
-        # shift an episode by a few steps, never its outcome.
-        assert (np.abs(steps - reference) <= np.maximum(3, 0.05 * reference)).all(), (
+        # The state expert re-reads the state each step: the modes' float rounding (and
+        # ee_delta's round trip through the IK) may shift an episode by a few steps, never
+        # its outcome.
+        assert (np.abs(steps - reference) <= np.maximum(5, 0.1 * reference)).all(), (
             mode,
             steps,
             reference,

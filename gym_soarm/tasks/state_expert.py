@@ -67,7 +67,7 @@ class StateExpertConfig:
     gripper_closed_rad: float = -0.17453
     joint_speed_rad: float = 0.05
     """Fastest change of an arm joint's target per step."""
-    joint_accel_rad: float = 0.006
+    joint_accel_rad: float = 0.02
     """Largest change of that speed per step (over the joint's measured speed)."""
     line_speed_m: float = 0.003
     """Fastest straight-line move of the jaws per step (descend, lift, lower)."""
