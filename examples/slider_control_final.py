@@ -16,7 +16,7 @@ Keys (with either window focused):
     1/2/3   overview / front / wrist camera
     ESC     quit (closing either window quits too)
 
-Windows need the GUI build of OpenCV and a display (see the README's Windows section).
+Windows need the GUI build of OpenCV and a display (see docs/videos-and-teleop.md, Windows).
 Every event is also printed, one line each, with the joint angles in radians.
 """
 

@@ -9,7 +9,7 @@
 #     pip install "lerobot[dataset,training]==0.6.1" -e ".[lerobot]" -e plugins/lerobot_env_soarm
 #     bash scripts/baselines.sh            # TASKS, EPISODES, STEPS, EVAL_EPISODES, OUT
 #
-# Every command below is the exact one behind the README's baseline table.
+# Every command below is the exact one behind the baseline table of docs/lerobot.md.
 set -euo pipefail
 TASKS="${TASKS:-ReachTarget-v0 LiftCube-v0 PickAndPlaceCube-v0 PushCube-v0}"
 EPISODES="${EPISODES:-50}"

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The imitation baselines of the README's table (SPEC section 22), on this machine:
+# The imitation baselines of docs/learning.md (SPEC section 22), on this machine:
 # behaviour cloning (ALGO=bc, the default; or ALGO=dagger) from the state experts on every
 # task, three training seeds each, each policy then measured on the benchmark's protocol
 # (50 episodes, seeds 1000 + k). Two workers share the tasks, one per CPU core.

@@ -1,4 +1,4 @@
-"""Render the README picture of the three cameras: docs/camera_views.png.
+"""Render the picture of the three cameras in docs/environments.md: docs/camera_views.png.
 
     python scripts/make_camera_views.py
 

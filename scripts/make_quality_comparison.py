@@ -1,4 +1,4 @@
-"""Render the README picture of the two render qualities: docs/quality_fast_vs_high.png.
+"""Render the picture of the two render qualities in docs/performance.md: docs/quality_fast_vs_high.png.
 
     python scripts/make_quality_comparison.py
 

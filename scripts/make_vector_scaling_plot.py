@@ -1,4 +1,4 @@
-"""Draw the README plot of vector env scaling: docs/vector_scaling.png.
+"""Draw the plot of vector env scaling in docs/performance.md: docs/vector_scaling.png.
 
     python -m gym_soarm.bench --configs "" --vector-scaling 1,2,4,8,16 \\
         --vector-obs state,front_wrist --json scaling.json

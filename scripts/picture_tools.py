@@ -1,4 +1,4 @@
-"""What the README picture scripts share: the pose they show, their options, the writing."""
+"""What the picture scripts of docs/ share: the pose they show, their options, the writing."""
 
 from __future__ import annotations
 

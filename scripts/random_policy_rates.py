@@ -1,4 +1,4 @@
-"""Success of uniform random joint targets on every task (the README's figures).
+"""Success of uniform random joint targets on every task (the figures in docs/tasks.md).
 
     python scripts/random_policy_rates.py [--episodes 100]
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The RL baselines of the README: each (algorithm, task) with three training seeds on the
+# The RL baselines of docs/learning.md: each (algorithm, task) with three training seeds on the
 # package's recipe (gym_soarm/rl/hyperparams.py), then 50 protocol episodes per policy
 # (seeds 1000-1049) and the summary (docs/rl_baselines.json, docs/rl_curves.png).
 #

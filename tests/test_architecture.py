@@ -23,10 +23,10 @@ import sys
 from pathlib import Path
 
 import pytest
+from doc_files import documentation_files
 
 PACKAGE = Path(__file__).resolve().parents[1] / "gym_soarm"
 PYPROJECT = PACKAGE.parent / "pyproject.toml"
-README = PACKAGE.parent / "README.md"
 
 
 def _module_name(path: Path, root: Path) -> str:
@@ -213,13 +213,14 @@ def test_the_main_block_checker_sees_both_spellings(tmp_path):
     assert not has_main_block(other)
 
 
-def readme_programs(readme: Path = README) -> list[str]:
-    """Every ``python -m gym_soarm...`` module name the README gives, sorted."""
-    return sorted(set(re.findall(r"python -m (gym_soarm(?:\.\w+)+)", readme.read_text())))
+def documented_programs(files: list[Path] | None = None) -> list[str]:
+    """Every ``python -m gym_soarm...`` module name the README and docs/ give, sorted."""
+    text = "\n".join(path.read_text() for path in files or documentation_files())
+    return sorted(set(re.findall(r"python -m (gym_soarm(?:\.\w+)+)", text)))
 
 
-@pytest.mark.parametrize("module", readme_programs())
-def test_every_python_m_name_of_the_readme_runs(module):
+@pytest.mark.parametrize("module", documented_programs())
+def test_every_python_m_name_of_the_docs_runs(module):
     result = subprocess.run(
         [sys.executable, "-m", module, "--help"],
         capture_output=True,

@@ -1,4 +1,4 @@
-"""gym_soarm with LeRobot itself: the README's record, train and evaluate commands.
+"""gym_soarm with LeRobot itself: the record, train and evaluate commands of docs/lerobot.md.
 
 Needs LeRobot (Python >= 3.12): ``pip install -e ".[lerobot,test]"``, then
 ``python -m pytest tests_lerobot``. ``.ci/lerobot_job`` builds that environment and runs
@@ -26,31 +26,32 @@ from lerobot.envs.utils import env_to_policy_features, preprocess_observation
 from gym_soarm import units
 from gym_soarm.lerobot import SoArmEnvConfig
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+ROOT = Path(__file__).resolve().parents[1]
+# Where the documentation lives; the command block is looked up in all of it.
+DOCUMENTATION = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 REPO_ID = "local/soarm_lift"
 DATASET = "datasets/soarm_lift"
 CHECKPOINT = "outputs/train/act_soarm_lift/checkpoints/last/pretrained_model"
 EVAL_DIR = "outputs/eval/act_soarm_lift"
 
 
-def readme_commands() -> str:
-    text = README.read_text()
-    match = re.search(
-        r"<!-- lerobot-commands:start -->\s*```bash\n(.*?)```\s*<!-- lerobot-commands:end -->",
-        text,
-        re.DOTALL,
+def documented_commands() -> str:
+    """The LeRobot command block (docs/lerobot.md), wherever the documentation holds it."""
+    pattern = r"<!-- lerobot-commands:start -->\s*```bash\n(.*?)```\s*<!-- lerobot-commands:end -->"
+    blocks = [m for p in DOCUMENTATION for m in re.findall(pattern, p.read_text(), re.DOTALL)]
+    assert len(blocks) == 1, (
+        f"the documentation should hold one LeRobot command block, not {len(blocks)}"
     )
-    assert match, "README.md has no LeRobot command block"
-    return match.group(1)
+    return blocks[0]
 
 
 @pytest.fixture(scope="module")
 def workdir(tmp_path_factory) -> Path:
-    """An empty folder in which the README's three commands ran, in order."""
-    folder = tmp_path_factory.mktemp("readme")
+    """An empty folder in which the three documented commands ran, in order."""
+    folder = tmp_path_factory.mktemp("lerobot_commands")
     env = dict(os.environ, HF_LEROBOT_HOME=str(folder / "lerobot_home"), WANDB_MODE="disabled")
     result = subprocess.run(
-        ["bash", "-euo", "pipefail", "-c", readme_commands()],
+        ["bash", "-euo", "pipefail", "-c", documented_commands()],
         cwd=folder,
         env=env,
         capture_output=True,
@@ -62,8 +63,8 @@ def workdir(tmp_path_factory) -> Path:
     return folder
 
 
-def test_the_readme_block_records_trains_and_evaluates():
-    commands = readme_commands()
+def test_the_documented_block_records_trains_and_evaluates():
+    commands = documented_commands()
     assert "python -m gym_soarm.record" in commands
     assert "lerobot-train" in commands and "lerobot-eval" in commands
     assert "--env.type=soarm" in commands and "HF_HUB_OFFLINE=1" in commands

@@ -101,7 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     variation = parser.add_argument_group(
-        "variation", "vary the scene at every reset (see the README's Variation section)"
+        "variation", "vary the scene at every reset (see docs/environments.md)"
     )
     variation.add_argument("--visual-randomization", choices=LEVELS, default="none")
     variation.add_argument("--physics-randomization", choices=LEVELS, default="none")

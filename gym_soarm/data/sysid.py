@@ -439,7 +439,7 @@ def fit_dynamics(
             root,
             f"only {seconds:.2f} s of frames to fit to (after each episode's first frame)",
             f"A fit needs at least {MIN_SECONDS:g} s of motion; record a longer dataset "
-            "(see the README's 'Fit the simulation to your arm').",
+            "(see 'Fit the simulation to your arm' in docs/real-arm.md).",
         )
     scenes = episode_scenes(dataset, task, seed)
 

@@ -14,7 +14,7 @@ Each task's expert lives beside the task, in its module under :mod:`gym_soarm.ta
             break
 
 Run ``python -m gym_soarm.expert`` (or ``gym-soarm-expert``) to measure every task's
-expert over its evaluation resets (the README's table).
+expert over its evaluation resets (the table in docs/tasks.md).
 """
 
 from __future__ import annotations

@@ -112,7 +112,7 @@ class SoArmEnvConfig(EnvConfig):
             :class:`gym_soarm.vector.SoArmVectorEnv`), ``"async"`` (Gymnasium's
             ``AsyncVectorEnv``, one process per environment), ``"sync"``
             (``SyncVectorEnv``), or ``"auto"`` (default): native for several
-            environments (README, "Vector envs and recording at scale": the fastest with
+            environments (docs/performance.md, "Vector envs and recording at scale": the fastest with
             state observations, level with async with a camera, on two cores), sync for
             one.
         calibration: with LeRobot units, the path of a real SO-101 follower's

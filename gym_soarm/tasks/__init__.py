@@ -2,8 +2,8 @@
 
 A task module declares a :class:`~gym_soarm.tasks.base.Task` subclass, its scripted
 expert and a :class:`~gym_soarm.tasks.base.TaskSpec`; the list below registers the
-built-in ones. Users register their own tasks with :func:`register_task` (see the
-README's "Adding a task").
+built-in ones. Users register their own tasks with :func:`register_task` (see "Tasks are
+modules" in docs/tasks.md).
 """
 
 from __future__ import annotations

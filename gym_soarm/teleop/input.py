@@ -94,7 +94,7 @@ KEY_HELP: tuple[tuple[str, str], ...] = (
     ("BACKSPACE", "discard the episode and start it again"),
     ("ESC or Q", "quit (saved episodes stay; so does closing the window or Ctrl-C)"),
 )
-"""The key map as (keys, what they do), for the window, ``--help`` and the README."""
+"""The key map as (keys, what they do), for the window, ``--help`` and the docs."""
 
 
 def motion_code(code: int) -> tuple[int, int] | None:
