@@ -34,7 +34,7 @@ from gym_soarm.render.backend import RENDER_QUALITIES
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
 from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.distractors import MAX_DISTRACTORS
-from gym_soarm.unit_maps import UNITS, check_wrist_roll_offset
+from gym_soarm.unit_maps import LEROBOT, UNITS, check_wrist_roll_offset
 from gym_soarm.validation import (
     ArgumentTypeError,
     check_bool,
@@ -56,14 +56,24 @@ SETTINGS_FORMAT = "gym_soarm.env_settings/1"
 """The ``format`` of :meth:`EnvSettings.to_dict`'s JSON object."""
 
 
+_PATHS = {
+    "calibration": ("a LeRobot calibration JSON file", "Pass e.g. calibration='follower.json'."),
+    "dynamics": (
+        "a gym_soarm.dynamics/1 JSON file",
+        "Fit one with python -m gym_soarm.sysid.",
+    ),
+}
+
+
 def _check_path(name: str, value: Any) -> str | None:
     """A file's path as a str (None stays None); the file itself is read by the env."""
     if value is None:
         return None
     if not isinstance(value, (str, os.PathLike)) or not os.fspath(value):
+        what, fix = _PATHS[name]
         raise ArgumentTypeError(
-            f"{name} must be the path of a JSON file (str or os.PathLike) or None; got "
-            f"{value!r} ({type(value).__name__}). Pass e.g. {name}='path/to/file.json'."
+            f"{name} must be the path of {what} (str or os.PathLike) or None; got {value!r} "
+            f"({type(value).__name__}). {fix}"
         )
     return os.fspath(value)
 
@@ -193,7 +203,8 @@ class EnvSettings:
     wrist_roll_offset_deg: float = _setting(
         0.0,
         "with LeRobot units: the real arm's wrist_roll reading (deg) at the model's 0 rad",
-        lambda name, value: check_wrist_roll_offset(UNITS[1], value),
+        # Type and range here; whether the units take an offset, in __post_init__.
+        lambda name, value: check_wrist_roll_offset(LEROBOT, value),
         metavar="DEG",
     )
     image_modalities: Sequence[str] = _setting(

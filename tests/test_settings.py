@@ -29,6 +29,7 @@ from gym_soarm.cli import sysid as sysid_cli
 from gym_soarm.cli import teleop as teleop_cli
 from gym_soarm.cli import train as train_cli
 from gym_soarm.cli.options import SETTINGS_DEST, settings_flag, settings_given
+from gym_soarm.data.record import record
 from gym_soarm.data.replay import ReplayDataset, replay_settings
 from gym_soarm.data.sysid import SYSID_SETTINGS
 from gym_soarm.env import SoArmEnv
@@ -118,8 +119,8 @@ BAD_VALUES = [
     ("distractors", 5, ValueError, "distractors must be an int from 0 to 4"),
     ("distractors", 1.0, TypeError, "distractors must be an int"),
     ("control_mode", "torque", ValueError, "control_mode must be one of"),
-    ("calibration", 3, TypeError, "calibration must be the path of a JSON file"),
-    ("dynamics", "", TypeError, "dynamics must be the path of a JSON file"),
+    ("calibration", 3, TypeError, "calibration must be the path of a LeRobot calibration JSON"),
+    ("dynamics", "", TypeError, "dynamics must be the path of a gym_soarm.dynamics/1 JSON"),
     ("normalize_actions", 1, TypeError, "normalize_actions must be True or False"),
 ]
 
@@ -472,3 +473,12 @@ def test_the_vector_env_keeps_the_settings_of_its_environments():
         )
     finally:
         envs.close()
+
+
+def test_the_recorder_refuses_settings_a_dataset_cannot_hold(tmp_path):
+    lift = EnvSettings(task="LiftCube-v0", normalize_actions=True)
+    with pytest.raises(ValueError, match=r"cannot record with .*normalize_actions"):
+        record(tmp_path / "a", task="LiftCube-v0", settings=lift)
+    with pytest.raises(ValueError, match=r"either settings or the keywords \['units'\]"):
+        record(tmp_path / "b", task="LiftCube-v0", units="radians", settings=EnvSettings())
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()

@@ -219,6 +219,10 @@ _RECORD_DEFAULTS: dict[str, Any] = {
 }
 
 
+_NOT_RECORDED = ("render_mode", "image_modalities", "normalize_actions")
+"""Settings the recorder leaves at their defaults (the dataset could not hold them)."""
+
+
 def _recording_settings(settings: EnvSettings | None, task: str, **keywords: Any) -> EnvSettings:
     """The settings of a recording: ``settings`` as given (then ``keywords`` must be the
     recorder's defaults), else built from ``keywords``."""
@@ -231,6 +235,13 @@ def _recording_settings(settings: EnvSettings | None, task: str, **keywords: Any
         raise ArgumentTypeError(
             f"settings must be a gym_soarm.settings.EnvSettings or None; got "
             f"{type(settings).__name__}. Build one with EnvSettings(...)."
+        )
+    unfit = {k: v for k, v in settings.changed().items() if k in _NOT_RECORDED}
+    if unfit:
+        raise ValueError(
+            f"the recorder cannot record with {unfit}: it writes RGB videos of the control "
+            f"mode's own actions, without a window. Leave {', '.join(sorted(unfit))} at "
+            "their defaults."
         )
     given = sorted(
         k
