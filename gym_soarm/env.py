@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import os
 import reprlib
@@ -18,40 +19,49 @@ from gymnasium import spaces
 
 from gym_soarm import constants
 from gym_soarm import snapshot as snapshots
-from gym_soarm.control import CONTROL_MODES, ControlMode, make_control
+from gym_soarm.control import ControlMode, make_control
 from gym_soarm.dynamics import apply_dynamics, load_dynamics
-from gym_soarm.render.backend import RENDER_QUALITIES
 from gym_soarm.render.camera import CameraRenderer
+from gym_soarm.settings import IMAGE_MODALITIES as IMAGE_MODALITIES
+from gym_soarm.settings import OBS_TYPES as OBS_TYPES
+from gym_soarm.settings import PLACEMENTS as PLACEMENTS
+from gym_soarm.settings import REWARD_TYPES as REWARD_TYPES
+from gym_soarm.settings import STATE_OBS_TYPES, EnvSettings
 from gym_soarm.sim.physics import SoArmPhysics
-from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS, STS3215, Randomizer, Sts3215Servo
+from gym_soarm.sim.randomization import STS3215, Randomizer, Sts3215Servo
 from gym_soarm.snapshot import Snapshot
 from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.base import Task, TaskSpec
-from gym_soarm.tasks.distractors import MAX_DISTRACTORS, place_distractors, with_distractors
+from gym_soarm.tasks.distractors import place_distractors, with_distractors
 from gym_soarm.tasks.state_observation import StateObservation
-from gym_soarm.units import UNITS, JointUnits, check_wrist_roll_offset, joint_units
+from gym_soarm.units import JointUnits, joint_units
 from gym_soarm.validation import (
     ArgumentTypeError,
-    check_bool,
     check_choice,
     check_image_size,
-    check_int,
-    check_subset,
     choices,
-    resolve_camera_config,
 )
 
-OBS_TYPES = ("pixels", "pixels_agent_pos", "environment_state_agent_pos", "state")
-STATE_OBS_TYPES = ("environment_state_agent_pos", "state")
-"""The observation types that render nothing."""
-REWARD_TYPES = ("dense", "sparse")
-PLACEMENTS = ("grid", "uniform")
-IMAGE_MODALITIES = ("rgb", "depth", "segmentation")
+_DEFAULTS: dict[str, Any] = {f.name: f.default for f in dataclasses.fields(EnvSettings)}
+
+
+def _keywords(scope: Mapping[str, Any]) -> dict[str, Any]:
+    """The ``gym.make`` keywords of ``SoArmEnv.__init__``'s local scope."""
+    return {name: scope[name] for name in _DEFAULTS}
+
+
 # LeRobot's evaluation (lerobot >= 0.6) marks the start of every rollout with this reset
 # option; it is accepted and has no effect.
 LEROBOT_ROLLOUT_OPTION = "lerobot_new_rollout"
 STATE_OPTION = "state"
 """The reset option that restores a :class:`~gym_soarm.snapshot.Snapshot`."""
+
+
+def _differs(value: Any, default: Any) -> bool:
+    try:
+        return bool(value != default)
+    except (TypeError, ValueError):  # e.g. an array compared with a str
+        return True
 
 
 class SoArmEnv(gym.Env):
@@ -199,46 +209,56 @@ class SoArmEnv(gym.Env):
         calibration: str | os.PathLike[str] | None = None,
         dynamics: str | os.PathLike[str] | None = None,
         normalize_actions: bool = False,
+        settings: EnvSettings | None = None,
     ) -> None:
-        # Validate every argument before building anything.
-        spec = get_task(task)
-        check_choice("obs_type", obs_type, OBS_TYPES)
-        cameras = resolve_camera_config(camera_config)
-        height = check_image_size("observation_height", observation_height)
-        width = check_image_size("observation_width", observation_width)
-        check_choice("render_mode", render_mode, self.metadata["render_modes"], none_ok=True)
-        check_choice("render_camera", render_camera, constants.CAMERA_NAMES)
-        check_choice("render_quality", render_quality, RENDER_QUALITIES)
-        check_choice("reward_type", reward_type, REWARD_TYPES)
-        check_choice("units", units, UNITS)
-        wrist_roll_offset_deg = check_wrist_roll_offset(units, wrist_roll_offset_deg)
-        joint_conversion = joint_units(units, wrist_roll_offset_deg, calibration)  # reads the file
-        fitted = None if dynamics is None else load_dynamics(dynamics)  # reads the file
-        modalities = check_subset("image_modalities", image_modalities, IMAGE_MODALITIES)
-        check_choice("visual_randomization", visual_randomization, LEVELS)
-        check_choice("physics_randomization", physics_randomization, LEVELS)
-        check_choice("servo_model", servo_model, SERVO_MODELS)
-        check_choice("object_placement", object_placement, PLACEMENTS, none_ok=True)
-        distractors = check_int("distractors", distractors, 0, MAX_DISTRACTORS)
-        task_logic: Task = spec.make_task(object_placement)  # refuses an unsupported placement
-        check_choice("control_mode", control_mode, CONTROL_MODES)
-        normalize_actions = check_bool("normalize_actions", normalize_actions)
+        keywords = _keywords(locals())
+        if settings is not None:
+            if not isinstance(settings, EnvSettings):
+                raise ArgumentTypeError(
+                    f"settings must be a gym_soarm.settings.EnvSettings; got "
+                    f"{type(settings).__name__}. Build one with EnvSettings(...) or "
+                    "EnvSettings.from_kwargs(...)."
+                )
+            given = {k: v for k, v in keywords.items() if _differs(v, _DEFAULTS[k])}
+            # A registered id passes its own task: fine when the settings name it too.
+            if "task" in given and get_task(given["task"]).name == settings.task:
+                del given["task"]
+            if given:
+                raise TypeError(
+                    f"pass either settings or keywords, not both; got settings and "
+                    f"{sorted(given)}. Use settings.replace({'=..., '.join(sorted(given))}=...)."
+                )
+        else:
+            # Every argument is checked once, before anything is built.
+            settings = EnvSettings.from_kwargs(**keywords)
+        self._settings = settings
+        s = settings
+        spec = get_task(s.task)
+        joint_conversion = joint_units(s.units, s.wrist_roll_offset_deg, s.calibration)  # reads
+        fitted = None if s.dynamics is None else load_dynamics(s.dynamics)  # reads the file
+        task_logic: Task = spec.make_task(s.object_placement)
+        cameras = s.camera_config
+        modalities = s.image_modalities
+        render_mode, obs_type = s.render_mode, s.obs_type
+        render_quality, servo_model, distractors = s.render_quality, s.servo_model, s.distractors
+        visual_randomization = s.visual_randomization
+        physics_randomization = s.physics_randomization
 
         self.render_mode = render_mode
         self.obs_type = obs_type
         self.cameras = cameras if obs_type not in STATE_OBS_TYPES else ()
         self.camera_config = cameras
-        self.observation_height = height
-        self.observation_width = width
-        self.render_camera = render_camera
+        self.observation_height = s.observation_height
+        self.observation_width = s.observation_width
+        self.render_camera = s.render_camera
         self.render_quality = render_quality
-        self.reward_type = reward_type
-        self.units = units
-        self.wrist_roll_offset_deg = wrist_roll_offset_deg
-        self.control_mode = control_mode
-        self.normalize_actions = normalize_actions
-        self.calibration = None if calibration is None else os.fspath(calibration)
-        self.dynamics = None if dynamics is None else os.fspath(dynamics)
+        self.reward_type = s.reward_type
+        self.units = s.units
+        self.wrist_roll_offset_deg = s.wrist_roll_offset_deg
+        self.control_mode = s.control_mode
+        self.normalize_actions = s.normalize_actions
+        self.calibration = s.calibration
+        self.dynamics = s.dynamics
         self._units = joint_conversion
         self.image_modalities = modalities
         self._rgb = "rgb" in modalities
@@ -303,7 +323,7 @@ class SoArmEnv(gym.Env):
 
         # The control mode turns an action into servo targets (clipped in radians).
         self._control = make_control(
-            control_mode, self._physics, self._units, normalize=normalize_actions
+            s.control_mode, self._physics, self._units, normalize=s.normalize_actions
         )
         self._state_observation = StateObservation(task_logic)
         self._commanded = self._physics.joint_targets().copy()
@@ -356,6 +376,12 @@ class SoArmEnv(gym.Env):
         return spaces.Dict(OrderedDict(agent_pos=agent_pos, environment_state=env_state))
 
     # --- physics access --------------------------------------------------------------
+    @property
+    def settings(self) -> EnvSettings:
+        """Every keyword this environment was made with, checked and normalised (see
+        :class:`gym_soarm.settings.EnvSettings`); ``gym.make(id, settings=...)`` takes it."""
+        return self._settings
+
     @property
     def physics(self) -> SoArmPhysics:
         """The dm_control physics of this environment (for experts, tests and tools)."""

@@ -432,6 +432,8 @@ class SoArmVectorEnv(VectorEnv):
 
         # The first environment checks every argument here and gives the spaces.
         first = SoArmEnv(**env_kwargs)
+        self.settings = first.settings
+        """Every environment's settings (:class:`gym_soarm.settings.EnvSettings`)."""
         self.metadata = dict(SoArmEnv.metadata)
         self.metadata["autoreset_mode"] = self.autoreset_mode
         self.render_mode = first.render_mode

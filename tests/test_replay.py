@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -11,9 +12,11 @@ import cv2
 import numpy as np
 import pytest
 
+from gym_soarm import constants
 from gym_soarm.cli.replay import main
-from gym_soarm.data.record import record
+from gym_soarm.data.record import SETTINGS_PATH, record
 from gym_soarm.data.replay import plot_replay, read_replay_dataset, replay
+from gym_soarm.settings import EnvSettings
 from gym_soarm.units import FEATURE_NAMES
 
 
@@ -175,3 +178,55 @@ def test_a_multi_task_recording_replays_each_episode_in_its_task(tmp_path):
     # Read as degrees without the offset, the same values track badly.
     wrong = replay(root, units="lerobot", wrist_roll_offset_deg=0.0)
     assert max(row["max_abs"] for row in wrong.figures().values()) > 1.0
+
+
+def _dynamics_file(path):
+    joints = {name: {"kp": 700.0, "kv": 20.0} for name in constants.JOINT_NAMES}
+    content = {"format": "gym_soarm.dynamics/1", "joints": joints, "control_delay_steps": 1}
+    path.write_text(json.dumps(content))
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def varied(tmp_path_factory):
+    """A reach recording made with fitted dynamics, the STS3215 servo model and physics
+    randomisation: settings the replay has to read back to reproduce it."""
+    folder = tmp_path_factory.mktemp("varied")
+    settings = EnvSettings(
+        task="ReachTarget-v0",
+        units="lerobot",
+        servo_model="sts3215",
+        physics_randomization="light",
+        dynamics=_dynamics_file(folder / "arm.json"),
+    )
+    root = folder / "reach"
+    record(
+        root, task="ReachTarget-v0", episodes=1, camera_config="none", keep="all", settings=settings
+    )
+    return root, settings
+
+
+def test_a_replay_reads_the_recording_settings_back(varied):
+    root, recorded = varied
+    stored = json.loads((root / SETTINGS_PATH).read_text())["env"]
+    assert EnvSettings.from_dict(stored).servo_model == "sts3215"
+    report = replay(root)
+    assert report.settings.dynamics == os.path.abspath(recorded.dynamics)
+    assert report.settings.servo_model == "sts3215"
+    assert report.settings.physics_randomization == "light"
+    # The recording's motion (to the rounding of the float32 state it starts from).
+    assert max(r["max_abs"] for r in report.figures().values()) < 1e-4
+    # Without them (each given explicitly), the simulated arm moves otherwise.
+    plain = replay(
+        root, settings={"dynamics": None, "servo_model": "ideal", "physics_randomization": "none"}
+    )
+    assert max(r["max_abs"] for r in plain.figures().values()) > 1.0
+
+
+def test_replay_flags_override_the_recording_settings(varied, tmp_path, capsys):
+    root, _ = varied
+    out = tmp_path / "replay.json"
+    assert main(["--root", str(root), "--servo-model", "ideal", "--json", str(out)]) == 0
+    capsys.readouterr()
+    figures = json.loads(out.read_text())["overall"]
+    assert max(row["max_abs"] for row in figures.values()) > 1e-3

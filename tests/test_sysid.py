@@ -249,6 +249,10 @@ def test_the_recording_says_which_dynamics_it_moved_with(recorded):
     # Replayed with the same file, the simulation reproduces the recording.
     report = replay(root, dynamics=true)
     assert max(row["max_abs"] for row in report.figures().values()) < 1e-4
+    # Replayed without arguments, too: the replay reads the recording's settings back.
+    report = replay(root)
+    assert report.settings.dynamics == os.path.abspath(true)
+    assert max(row["max_abs"] for row in report.figures().values()) < 1e-4
 
 
 @needs_toolbox
@@ -278,7 +282,7 @@ def test_known_dynamics_are_fitted_back(recorded, fitted):
     report = replay(root, dynamics=out)
     rms_deg = [row["rms"] for key, row in report.figures().items() if key != "gripper.pos"]
     assert max(rms_deg) < 0.5
-    before = replay(root)
+    before = replay(root, settings={"dynamics": None})  # the model's own
     assert before.figures()["wrist_flex.pos"]["rms"] > 5 * report.figures()["wrist_flex.pos"]["rms"]
 
 

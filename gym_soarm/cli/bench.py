@@ -15,6 +15,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from gym_soarm.cli.options import add_settings_arguments, settings_given
+from gym_soarm.settings import EnvSettings
 from gym_soarm.tasks import DEFAULT_TASK
 from gym_soarm.tools import bench, bench_vector
 
@@ -35,8 +37,27 @@ def _print_scale(report: dict[str, Any]) -> None:
         print(bench.format_recording(recording))
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line entry point; returns the process exit code."""
+BENCH_EXCLUDES: tuple[str, ...] = (
+    "task",  # --task
+    "obs_type",  # --configs names the observation, cameras, size and render quality
+    "camera_config",
+    "observation_height",
+    "observation_width",
+    "render_quality",
+    "render_mode",  # nothing is shown
+    "control_mode",  # --control-mode (kept as it was: its own default and help)
+)
+"""The environment settings the benchmark sets itself."""
+
+
+def env_changes(args: argparse.Namespace) -> dict[str, Any]:
+    """The further ``gym.make`` keywords of the measured configurations: the flags given
+    (each flag's default is None: gym.make's own)."""
+    return settings_given(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The program's command line."""
     parser = argparse.ArgumentParser(
         prog="python -m gym_soarm.bench",
         description="Measure env steps/s, make/reset time and memory against MuJoCo's own "
@@ -130,7 +151,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         default="none,front_wrist",
         help="camera configs recorded, 'none' for state only (default: %(default)s)",
     )
+    add_settings_arguments(
+        parser,
+        exclude=BENCH_EXCLUDES,
+        defaults=dict.fromkeys(EnvSettings.names()),
+        description="further gym.make keywords of the --configs measurements (see "
+        "docs/keywords.md)",
+        default_text="default: gym.make's",
+    )
     parser.add_argument("--worker", help=argparse.SUPPRESS)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command line entry point; returns the process exit code."""
+    parser = build_parser()
     args = parser.parse_args(argv)
     if args.worker:
         bench.serve_worker(args.worker)
@@ -154,6 +189,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             task=args.task,
             control_mode=args.control_mode,
             vector_scaling=counts,
+            env=env_changes(args),
             vector_obs=[o.strip() for o in args.vector_obs.split(",") if o.strip()],
             vector_modes=[m.strip() for m in args.vector_modes.split(",") if m.strip()],
             image_size=(height, width),

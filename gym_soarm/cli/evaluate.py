@@ -12,10 +12,35 @@ import argparse
 import json
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
-from gym_soarm.cli.options import int_at_least
+from gym_soarm.cli.options import (
+    add_settings_arguments,
+    int_at_least,
+    settings_except,
+    settings_given,
+)
+from gym_soarm.settings import merge_keywords
 from gym_soarm.tasks import get_task, task_names
 from gym_soarm.tasks.suites import EVAL_SEED
+
+EVALUATE_SETTINGS: tuple[str, ...] = (
+    "reward_type",
+    "visual_randomization",
+    "physics_randomization",
+    "servo_model",
+    "object_placement",
+    "distractors",
+    "dynamics",
+)
+"""The environment settings ``--policy`` runs may change: the world, never what the
+policy reads or sends (observation, units, control mode), which stay the policy's own."""
+
+
+def env_kwargs(args: argparse.Namespace, base: dict[str, Any], task: str) -> dict[str, Any]:
+    """The ``gym.make`` keywords of the evaluation: ``base`` (the policy's own, or state
+    observations for the expert) with the flags given, checked."""
+    return merge_keywords(base, task, settings_given(args))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -40,6 +65,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--first-seed", type=int, default=EVAL_SEED, help=f"seed of episode 0 (default {EVAL_SEED})"
     )
     parser.add_argument("--json", default=None, metavar="PATH", help="write the result as JSON")
+    add_settings_arguments(
+        parser,
+        exclude=settings_except(*EVALUATE_SETTINGS),
+        defaults=dict.fromkeys(EVALUATE_SETTINGS),
+        description="gym.make keywords over the policy's own environment (see docs/keywords.md)",
+        default_text="default: the policy's own, else gym.make's",
+    )
     return parser
 
 
@@ -54,13 +86,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             if args.task is None:
                 raise ValueError("--policy expert needs --task, e.g. --task ReachTarget-v0.")
             task = get_task(args.task).name
-            env_kwargs = {"obs_type": "state"}
+            base: dict[str, Any] = {"obs_type": "state"}
             policy = None
         else:
             trained = TrainedPolicy(args.policy, args.task)
-            task, env_kwargs, policy = trained.task, trained.settings["env"], trained
-        result = score(task, env_kwargs, policy, args.episodes, args.first_seed)
-    except (ValueError, ImportError) as exc:
+            task, base, policy = trained.task, trained.settings["env"], trained
+        kwargs = env_kwargs(args, base, task)
+        result = score(task, kwargs, policy, args.episodes, args.first_seed)
+    except (ValueError, TypeError, ImportError) as exc:
         raise SystemExit(f"python -m gym_soarm.evaluate: error: {exc}") from None
     result["policy"] = args.policy
     print(

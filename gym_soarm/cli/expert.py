@@ -16,21 +16,56 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Sequence
+from typing import Any
 
-from gym_soarm.cli.options import task_selection
-from gym_soarm.control import CONTROL_MODES
+from gym_soarm.cli.options import add_settings_arguments, settings_from_args, task_selection
 from gym_soarm.expert import EpisodeResult, evaluate, evaluate_protocol
 from gym_soarm.expert.perturbed import PERTURBATIONS, PerturbedResult, evaluate_perturbed
+from gym_soarm.settings import EnvSettings
 from gym_soarm.tasks import get_task, task_names
-from gym_soarm.tasks.suites import EVAL_SEED, SUITE_NAMES, distinct_tasks, resolve_selection
+from gym_soarm.tasks.suites import (
+    EVAL_SEED,
+    SUITE_NAMES,
+    SelectedTask,
+    distinct_tasks,
+    resolve_selection,
+)
+
+EXPERT_EXCLUDES: tuple[str, ...] = (
+    "task",  # --task: tasks, suites or all
+    "obs_type",  # the expert reads the state: environment_state_agent_pos
+    "camera_config",  # nothing is rendered
+    "observation_height",
+    "observation_width",
+    "render_mode",
+    "render_camera",
+    "render_quality",
+    "image_modalities",
+)
+"""The environment settings the expert's measurement sets itself."""
+EXPERT_OBS_TYPE = "environment_state_agent_pos"
+
+
+def env_settings(args: argparse.Namespace, item: SelectedTask) -> EnvSettings:
+    """The environment settings of ``item``'s measurement: the flags, then the suite's
+    own variation."""
+    return settings_from_args(args, task=item.task, obs_type=EXPERT_OBS_TYPE, **item.variation)
+
+
+def env_kwargs(settings: EnvSettings) -> dict[str, Any]:
+    """The keywords the evaluation functions pass on to ``gym.make`` (they set the task
+    and the observation type themselves)."""
+    kwargs = settings.to_kwargs()
+    del kwargs["task"], kwargs["obs_type"]
+    return kwargs
 
 
 def _selection(text: str) -> str:
     return text if text == "all" else task_selection(text)
 
 
-def main(argv: Sequence[str] | None = None) -> None:
-    """Print the expert's success rate per task over its evaluation episodes."""
+def build_parser() -> argparse.ArgumentParser:
+    """The program's command line."""
     parser = argparse.ArgumentParser(
         prog="python -m gym_soarm.expert",
         description="Measure the scripted expert's success rate on each task: grid tasks "
@@ -62,12 +97,6 @@ def main(argv: Sequence[str] | None = None) -> None:
         "a suite's own randomisation), as lerobot-eval runs them",
     )
     parser.add_argument(
-        "--control-mode",
-        choices=CONTROL_MODES,
-        default="joint_pos",
-        help="the environment's control mode, in which the expert answers (default joint_pos)",
-    )
-    parser.add_argument(
         "--perturbed",
         type=int,
         nargs="?",
@@ -78,6 +107,22 @@ def main(argv: Sequence[str] | None = None) -> None:
         "object, half-closed jaws), N episodes of each per task (default 20)",
     )
     parser.add_argument("--verbose", action="store_true", help="print every failed episode")
+    add_settings_arguments(
+        parser,
+        exclude=EXPERT_EXCLUDES,
+        helps={
+            "control_mode": "the environment's control mode, in which the expert answers "
+            "(default joint_pos)"
+        },
+        description="gym.make keywords of every measured environment (see docs/keywords.md); "
+        "a suite's own variation wins",
+    )
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """Print the expert's success rate per task over its evaluation episodes."""
+    parser = build_parser()
     args = parser.parse_args(argv)
     if args.perturbed is not None:
         if args.perturbed < 1:
@@ -93,7 +138,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     names = [",".join(task_names()) if name == "all" else name for name in args.task]
     for item in distinct_tasks(resolve_selection(",".join(names))):
         started = time.perf_counter()
-        kwargs = {**item.variation, "control_mode": args.control_mode}
+        try:
+            kwargs = env_kwargs(env_settings(args, item))
+        except ValueError as exc:  # also TypeError: ArgumentTypeError is both
+            parser.error(str(exc))
         if args.perturbed is not None:
             _report_perturbed(item.task, evaluate_perturbed(item.task, args.perturbed, **kwargs))
             continue

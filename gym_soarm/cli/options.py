@@ -1,13 +1,16 @@
-"""Command-line options shared by gym_soarm's programs (recorder, teleop, expert)."""
+"""Command-line options shared by gym_soarm's programs, and the flags generated from
+:class:`gym_soarm.settings.EnvSettings` (:func:`add_settings_arguments`)."""
 
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
+import dataclasses
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 from gym_soarm import constants
-from gym_soarm.control import CONTROL_MODES
 from gym_soarm.data.replay import REPLAY_TASK
+from gym_soarm.settings import EnvSettings, setting_fields
 from gym_soarm.tasks import task_names, task_spellings
 from gym_soarm.tasks.suites import resolve_selection
 from gym_soarm.units import UNITS
@@ -37,37 +40,6 @@ def int_at_least(minimum: int) -> Callable[[str], int]:
         return value
 
     return parse
-
-
-def add_dataset_action_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add ``--units``, ``--wrist-roll-offset-deg``, ``--calibration`` and ``--control-mode``:
-    what the recorded states and actions hold."""
-    parser.add_argument(
-        "--units", choices=UNITS, default="lerobot", help="joint units (default lerobot)"
-    )
-    parser.add_argument(
-        "--wrist-roll-offset-deg",
-        type=float,
-        default=0.0,
-        metavar="DEG",
-        help="with LeRobot units: the real arm's wrist_roll reading when the model's is at "
-        "0 rad, e.g. -90 (default 0)",
-    )
-    parser.add_argument(
-        "--calibration",
-        default=None,
-        metavar="PATH",
-        help="with LeRobot units: a real SO-101 follower's LeRobot calibration JSON; states "
-        "and actions are then that arm's values",
-    )
-    parser.add_argument(
-        "--control-mode",
-        choices=CONTROL_MODES,
-        default="joint_pos",
-        help="what the recorded action is: joint targets (joint_pos), their changes "
-        "(joint_delta), the jaws' pose in the robot's base frame (ee_pose) or its changes "
-        "(ee_delta) (default joint_pos)",
-    )
 
 
 def add_dataset_scene_arguments(parser: argparse.ArgumentParser) -> None:
@@ -111,20 +83,152 @@ def add_dataset_scene_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def add_dynamics_argument(parser: argparse.ArgumentParser) -> None:
-    """Add ``--dynamics``: a fitted arm's servo and joint figures (gym_soarm.dynamics)."""
-    parser.add_argument(
-        "--dynamics",
-        default=None,
-        metavar="PATH",
-        help="a gym_soarm.dynamics/1 JSON file (python -m gym_soarm.sysid fits one to a real "
-        "arm's dataset): the simulated servos and joints move with its figures",
-    )
-
-
 def camera_config_argument(text: str) -> str | list[str]:
     """``--camera-config`` as the recorder takes it: a config name (``front_wrist``,
     ``none`` ...) as is, camera names (``front_camera,wrist_camera``) as a list."""
     if "," in text or text in constants.CAMERA_NAMES:
         return [name.strip() for name in text.split(",") if name.strip()]
     return text
+
+
+# --- flags generated from the environment settings --------------------------------------
+SETTINGS_DEST = "_settings_fields"
+"""The ``argparse.Namespace`` attribute listing the settings fields a parser has flags for."""
+
+
+def settings_flag(name: str) -> str:
+    """The command-line flag of a settings field: ``dynamics`` -> ``--dynamics``."""
+    return "--" + name.replace("_", "-")
+
+
+def _setting_type(item: dataclasses.Field) -> Callable[[str], Any]:
+    """argparse ``type`` of a settings field: its text read and checked by its own check."""
+    parse = item.metadata.get("parse")
+    if parse is None and item.metadata.get("choices"):
+        return str  # argparse's choices check it, and name the valid ones
+    if parse is None:
+        kind = type(item.default)
+        parse = kind if kind in (int, float) else str
+
+    def read(text: str) -> Any:
+        try:
+            value = parse(text)
+            item.metadata["check"](item.name, value)
+        except (TypeError, ValueError) as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+        return value
+
+    read.__name__ = item.name  # argparse names the type in its messages
+    return read
+
+
+def settings_except(*names: str) -> tuple[str, ...]:
+    """Every settings field but ``names``: what a program that takes only those excludes."""
+    return tuple(name for name in EnvSettings.names() if name not in names)
+
+
+def add_settings_arguments(
+    parser: argparse.ArgumentParser,
+    *,
+    exclude: Sequence[str] = (),
+    defaults: Mapping[str, Any] | None = None,
+    helps: Mapping[str, str] | None = None,
+    title: str = "environment",
+    description: str | None = "gym.make keywords (see docs/keywords.md)",
+    default_text: str | None = None,
+) -> tuple[str, ...]:
+    """Add a flag per :class:`~gym_soarm.settings.EnvSettings` field, generated from it.
+
+    Every field gets ``--field-name`` (its dest is the field's name), except those in
+    ``exclude`` (the program sets them itself or has its own flag for them). The flag
+    reads its text with the field's parser and checks it with the field's check, so a
+    bad value is a usage error. Bool fields get ``--name``/``--no-name``.
+
+    Args:
+        parser: the parser (or argument group's parser) to add to.
+        exclude: field names to leave out.
+        defaults: per field, the flag's default when not the field's own (e.g. None for
+            "the recording's own" in replay).
+        helps: per field, a help text instead of the field's doc.
+        title: the argument group's title.
+        description: the argument group's description.
+        default_text: what the help says of a flag's default (default: its value).
+
+    Returns:
+        The fields added (also recorded in the parsed namespace for
+        :func:`settings_from_args`).
+
+    Raises:
+        ValueError: ``exclude``, ``defaults`` or ``helps`` name an unknown field.
+    """
+    defaults = dict(defaults or {})
+    helps = dict(helps or {})
+    names = EnvSettings.names()
+    unknown = sorted((set(exclude) | set(defaults) | set(helps)) - set(names))
+    if unknown:
+        raise ValueError(f"unknown settings fields {unknown}; the fields are {', '.join(names)}.")
+    group = parser.add_argument_group(title, description)
+    added = []
+    for item in setting_fields():
+        if item.name in exclude:
+            continue
+        default = defaults.get(item.name, item.default)
+        shown = ",".join(default) if isinstance(default, tuple) else default
+        text = helps.get(item.name, item.metadata["doc"])
+        if item.name not in helps:
+            text += f" (default {shown})" if default_text is None else f" ({default_text})"
+        text = text.replace("%", "%%")
+        if isinstance(item.default, bool):
+            group.add_argument(
+                settings_flag(item.name),
+                dest=item.name,
+                action=argparse.BooleanOptionalAction,
+                default=default,
+                help=text,
+            )
+        else:
+            group.add_argument(
+                settings_flag(item.name),
+                dest=item.name,
+                type=_setting_type(item),
+                choices=None if item.metadata.get("parse") else item.metadata.get("choices"),
+                default=default,
+                metavar=_metavar(item),
+                help=text,
+            )
+        added.append(item.name)
+    previous = parser.get_default(SETTINGS_DEST) or ()
+    parser.set_defaults(**{SETTINGS_DEST: (*previous, *added)})
+    return tuple(added)
+
+
+def _metavar(item: dataclasses.Field) -> str | None:
+    return item.metadata.get("metavar")  # None: argparse shows the choices
+
+
+def settings_given(args: argparse.Namespace) -> dict[str, Any]:
+    """The generated settings flags' values in ``args`` (see
+    :func:`add_settings_arguments`), as keywords; None values left out (not given)."""
+    names = getattr(args, SETTINGS_DEST, ())
+    return {name: getattr(args, name) for name in names if getattr(args, name) is not None}
+
+
+def settings_from_args(
+    args: argparse.Namespace,
+    base: EnvSettings | Mapping[str, Any] | None = None,
+    **fixed: Any,
+) -> EnvSettings:
+    """The :class:`~gym_soarm.settings.EnvSettings` of parsed flags.
+
+    ``base`` (settings or keywords; default: the defaults) is overlaid with the flags'
+    values (None: not given, the base's stays), then with ``fixed`` (what the program
+    sets itself, such as ``obs_type``).
+
+    Raises:
+        ValueError, TypeError: the combination is not valid (e.g. a wrist offset with
+            radians); the message names the keyword.
+    """
+    if isinstance(base, EnvSettings):
+        base = base.to_kwargs()
+    values = {**dict(base or {}), **settings_given(args), **fixed}
+    return EnvSettings.from_kwargs(**values)

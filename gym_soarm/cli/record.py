@@ -12,9 +12,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from gym_soarm.cli.options import (
-    add_dataset_action_arguments,
-    add_dynamics_argument,
+    add_settings_arguments,
     camera_config_argument,
+    settings_from_args,
     task_selection,
 )
 from gym_soarm.data.record import (
@@ -24,10 +24,30 @@ from gym_soarm.data.record import (
     default_root,
     record,
 )
-from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
+from gym_soarm.settings import EnvSettings
 from gym_soarm.tasks import task_names
-from gym_soarm.tasks.suites import SUITE_NAMES
+from gym_soarm.tasks.suites import SUITE_NAMES, distinct_tasks, resolve_selection
 from gym_soarm.validation import parse_size
+
+RECORD_EXCLUDES: tuple[str, ...] = (
+    "task",  # --task: a task, a suite or a list of them
+    "obs_type",  # images with --camera-config, the task state with --camera-config none
+    "camera_config",  # --camera-config, which also takes 'none'
+    "observation_height",  # --size
+    "observation_width",  # --size
+    "render_mode",  # no window: the recorder writes videos
+    "render_camera",  # the cameras recorded are --camera-config's
+    "image_modalities",  # LeRobot's videos hold RGB
+    "normalize_actions",  # the dataset's actions are the control mode's own values
+)
+"""The environment settings the recorder sets itself (the reason beside each)."""
+
+
+def env_settings(args: argparse.Namespace) -> EnvSettings:
+    """The environment settings of every attempt (the first task's; each task's own
+    ``task`` and the suite's variation apply per task)."""
+    first = distinct_tasks(resolve_selection(args.task))[0].task
+    return settings_from_args(args, task=first)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -64,8 +84,12 @@ def build_parser() -> argparse.ArgumentParser:
         "'none' records observation.environment_state and no video (default front_wrist)",
     )
     parser.add_argument("--size", default="480x640", help="image HEIGHTxWIDTH (default 480x640)")
-    add_dataset_action_arguments(parser)
-    add_dynamics_argument(parser)
+    add_settings_arguments(
+        parser,
+        exclude=RECORD_EXCLUDES,
+        defaults={"units": "lerobot"},
+        description="gym.make keywords of every attempt's environment (see docs/keywords.md)",
+    )
     parser.add_argument(
         "--keep",
         choices=KEEP_CHOICES,
@@ -100,21 +124,6 @@ def build_parser() -> argparse.ArgumentParser:
         "one), or on a new local cluster without ADDRESS; needs pip install 'gym-soarm[ray]'",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    variation = parser.add_argument_group(
-        "variation", "vary the scene at every reset (see docs/environments.md)"
-    )
-    variation.add_argument("--visual-randomization", choices=LEVELS, default="none")
-    variation.add_argument("--physics-randomization", choices=LEVELS, default="none")
-    variation.add_argument("--servo-model", choices=SERVO_MODELS, default="ideal")
-    variation.add_argument(
-        "--object-placement",
-        choices=("grid", "uniform"),
-        default=None,
-        help="grid or uniform (default: the task's)",
-    )
-    variation.add_argument(
-        "--distractors", type=int, default=0, help="extra objects on the table, 0-4 (default 0)"
-    )
     return parser
 
 
@@ -133,24 +142,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             seed=args.seed,
             camera_config=camera_config,
             size=size,
-            units=args.units,
-            wrist_roll_offset_deg=args.wrist_roll_offset_deg,
             keep=args.keep,
             dart_noise=args.dart_noise,
             overwrite=args.overwrite,
             progress=not args.no_progress,
             workers=args.workers,
             ray_address=args.ray,
-            variation={
-                "visual_randomization": args.visual_randomization,
-                "physics_randomization": args.physics_randomization,
-                "servo_model": args.servo_model,
-                "object_placement": args.object_placement,
-                "distractors": args.distractors,
-            },
-            control_mode=args.control_mode,
-            calibration=args.calibration,
-            dynamics=args.dynamics,
+            settings=env_settings(args),
         )
     except (ValueError, TypeError, FileExistsError, ImportError) as exc:
         parser.error(str(exc))

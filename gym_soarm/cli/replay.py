@@ -11,9 +11,15 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
-from gym_soarm.cli.options import add_dataset_scene_arguments, add_dynamics_argument
-from gym_soarm.data.replay import plot_replay, replay
+from gym_soarm.cli.options import (
+    add_dataset_scene_arguments,
+    add_settings_arguments,
+    settings_except,
+    settings_given,
+)
+from gym_soarm.data.replay import REPLAY_OVERRIDES, plot_replay, replay
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -32,12 +38,31 @@ def build_parser() -> argparse.ArgumentParser:
         help="an episode index to replay; repeat for several (default: every episode)",
     )
     add_dataset_scene_arguments(parser)
-    add_dynamics_argument(parser)
+    add_settings_arguments(
+        parser,
+        exclude=settings_except(*REPLAY_OVERRIDES),
+        defaults=dict.fromkeys(REPLAY_OVERRIDES),
+        description="gym.make keywords over a gym_soarm recording's own (see docs/keywords.md)",
+        default_text="default: the recording's own, else gym.make's",
+    )
     parser.add_argument("--json", default=None, metavar="PATH", help="write the figures as JSON")
     parser.add_argument(
         "--plot", default=None, metavar="PATH.png", help="draw recorded vs simulated joints"
     )
     return parser
+
+
+def replay_arguments(args: argparse.Namespace) -> dict[str, Any]:
+    """The keywords of :func:`gym_soarm.data.replay.replay` that the flags give."""
+    return {
+        "episodes": args.episode,
+        "units": args.units,
+        "calibration": args.calibration,
+        "wrist_roll_offset_deg": args.wrist_roll_offset_deg,
+        "task": args.task,
+        "seed": args.seed,
+        "settings": settings_given(args),
+    }
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -50,16 +75,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if path is not None and not Path(path).resolve().parent.is_dir():
             parser.error(f"{flag}: the folder of {path!r} does not exist; create it first.")
     try:
-        report = replay(
-            args.root,
-            episodes=args.episode,
-            units=args.units,
-            calibration=args.calibration,
-            wrist_roll_offset_deg=args.wrist_roll_offset_deg,
-            task=args.task,
-            seed=args.seed,
-            dynamics=args.dynamics,
-        )
+        report = replay(args.root, **replay_arguments(args))
     except (ValueError, TypeError, ImportError) as exc:
         parser.error(str(exc))
     print(report.table())

@@ -12,8 +12,13 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from gym_soarm import constants
-from gym_soarm.cli.options import add_dataset_scene_arguments
-from gym_soarm.data.sysid import DELAYS, FIT_ITERATIONS, fit_dynamics, plot_fit
+from gym_soarm.cli.options import (
+    add_dataset_scene_arguments,
+    add_settings_arguments,
+    settings_except,
+    settings_given,
+)
+from gym_soarm.data.sysid import DELAYS, FIT_ITERATIONS, SYSID_SETTINGS, fit_dynamics, plot_fit
 from gym_soarm.dynamics import write_dynamics
 
 
@@ -44,6 +49,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="draw recorded vs simulated joints, before and after the fit (needs matplotlib)",
     )
     add_dataset_scene_arguments(parser)
+    add_settings_arguments(
+        parser,
+        exclude=settings_except(*SYSID_SETTINGS),
+        defaults=dict.fromkeys(SYSID_SETTINGS),
+        description="gym.make keywords over a gym_soarm recording's own (see docs/keywords.md)",
+        default_text="default: the recording's own, else gym.make's",
+    )
     parser.add_argument(
         "--delays",
         type=int,
@@ -88,6 +100,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             seed=args.seed,
             delays=args.delays,
             iterations=args.iterations,
+            settings=settings_given(args),
         )
     except (ValueError, TypeError, ImportError) as exc:
         parser.error(str(exc))

@@ -11,14 +11,15 @@ import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 
 from gym_soarm import constants
 from gym_soarm.cli.options import (
-    add_dataset_action_arguments,
-    add_dynamics_argument,
+    add_settings_arguments,
     camera_config_argument,
+    settings_from_args,
 )
 from gym_soarm.data import LeRobotDatasetWriter
 from gym_soarm.data.record import (
@@ -32,6 +33,7 @@ from gym_soarm.data.record import (
     write_recording_settings,
 )
 from gym_soarm.render.display import window_support_problem
+from gym_soarm.settings import EnvSettings
 from gym_soarm.tasks import get_task, task_names, task_spellings
 from gym_soarm.teleop.gamepad import Gamepad, import_pygame
 from gym_soarm.teleop.input import KEY_HELP, MAX_SPEED_M_S, MAX_TURN_SPEED_RAD_S, TeleopSpeeds
@@ -42,6 +44,21 @@ DEFAULT_SIZE = "240x320"
 DEFAULT_MAX_STEPS = 1500
 DEFAULT_REPO_ID = "local/soarm_teleop"
 SHOWN_WITHOUT_CAMERAS: tuple[str, ...] = ("front_camera", "wrist_camera")
+
+
+TELEOP_EXCLUDES: tuple[str, ...] = (
+    "task",  # --task
+    "obs_type",  # images with --camera-config, the task state with --camera-config none
+    "camera_config",  # --camera-config, which also takes 'none'
+    "observation_height",  # --size
+    "observation_width",  # --size
+    "render_quality",  # --quality (also --render-quality)
+    "render_mode",  # the session's own window shows the cameras
+    "render_camera",
+    "image_modalities",  # the window and LeRobot's videos show RGB
+    "normalize_actions",  # the session sends the control mode's own values
+)
+"""The environment settings the teleop sets itself (the reason beside each)."""
 
 
 def _key_map_text() -> str:
@@ -99,8 +116,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--size", default=DEFAULT_SIZE, help=f"image HEIGHTxWIDTH (default {DEFAULT_SIZE})"
     )
-    add_dataset_action_arguments(parser)
-    add_dynamics_argument(parser)
     parser.add_argument(
         "--keep",
         choices=KEEP_CHOICES,
@@ -139,9 +154,39 @@ def build_parser() -> argparse.ArgumentParser:
         "shoulder buttons pitch, A gripper, Start save, Back discard; needs pip install pygame",
     )
     parser.add_argument(
-        "--quality", choices=("fast", "high"), default="fast", help="render quality (default fast)"
+        "--quality",
+        "--render-quality",
+        dest="render_quality",
+        choices=("fast", "high"),
+        default="fast",
+        help="render quality (default fast)",
+    )
+    add_settings_arguments(
+        parser,
+        exclude=TELEOP_EXCLUDES,
+        defaults={"units": "lerobot"},
+        description="gym.make keywords of the driven environment (see docs/keywords.md)",
     )
     return parser
+
+
+def env_settings(args: argparse.Namespace) -> EnvSettings:
+    """The environment settings the flags ask for (checked)."""
+    camera_config = camera_config_argument(args.camera_config)
+    height, width = parse_size(args.size)
+    fixed: dict[str, Any] = {
+        "task": get_task(args.task).name,
+        "render_quality": args.render_quality,
+        "observation_height": height,
+        "observation_width": width,
+    }
+    if camera_config == CAMERA_CONFIG_NONE:
+        fixed["obs_type"] = "environment_state_agent_pos"
+    else:
+        fixed.update(
+            obs_type="pixels_agent_pos", camera_config=resolve_camera_config(camera_config)
+        )
+    return settings_from_args(args, **fixed)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -159,6 +204,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         episodes = check_int("--episodes", args.episodes, 1)
         max_steps = check_int("--max-steps", args.max_steps, 1)
         check_int("--seed", args.seed, 0)
+        settings = env_settings(args)
     except (ValueError, TypeError) as exc:
         parser.error(str(exc))
     for flag, value, limit, unit in (
@@ -186,24 +232,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 1
         print(f"gamepad {gamepad.name!r}", flush=True)
 
-    env_kwargs = {
-        "units": args.units,
-        "wrist_roll_offset_deg": args.wrist_roll_offset_deg,
-        "calibration": args.calibration,
-        "dynamics": args.dynamics,
-        "control_mode": args.control_mode,
-        "render_quality": args.quality,
-        "observation_height": height,
-        "observation_width": width,
-    }
-    if state_only:
-        env_kwargs["obs_type"] = "environment_state_agent_pos"
-    else:
-        env_kwargs.update(obs_type="pixels_agent_pos", camera_config=list(cameras))
     writer = None
     root = Path(args.root) if args.root else default_root(repo_id)
     try:
-        env = gym.make(spec.env_id, max_episode_steps=max_steps, **env_kwargs)
+        env = gym.make(spec.env_id, max_episode_steps=max_steps, settings=settings)
     except (ValueError, TypeError) as exc:
         if gamepad is not None:
             gamepad.close()
@@ -211,22 +243,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if recording:
             state_names = env.unwrapped.state_names if state_only else None
-            features = dataset_features(cameras, height, width, state_names, args.control_mode)
-            robot_type = robot_type_for(args.units)
+            features = dataset_features(cameras, height, width, state_names, settings.control_mode)
+            robot_type = robot_type_for(settings.units)
             try:
                 writer = LeRobotDatasetWriter.create(
                     root, FPS, features, robot_type=robot_type, overwrite=args.overwrite
                 )
             except (ValueError, FileExistsError, ImportError) as exc:
                 parser.error(str(exc))
-            write_recording_settings(
-                root,
-                args.units,
-                args.wrist_roll_offset_deg,
-                args.calibration,
-                args.control_mode,
-                args.dynamics,
-            )
+            write_recording_settings(root, settings)
             print(f"recording into {root}", flush=True)
         session = TeleopSession(
             env,

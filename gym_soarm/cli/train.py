@@ -18,8 +18,9 @@ import logging
 from collections.abc import Sequence
 from typing import Any
 
-from gym_soarm.cli.options import int_at_least
+from gym_soarm.cli.options import add_settings_arguments, int_at_least, settings_given
 from gym_soarm.rl.hyperparams import IMITATION, TRAINERS, VEC_ENVS
+from gym_soarm.settings import EnvSettings
 from gym_soarm.tasks import task_names
 
 
@@ -35,6 +36,25 @@ def _hyperparam(text: str) -> tuple[str, Any]:
         raise argparse.ArgumentTypeError(
             f"the value of {key} must be a Python literal (a number, string, list ...); got {value!r}"
         ) from None
+
+
+TRAIN_EXCLUDES: tuple[str, ...] = (
+    "task",  # --task
+    "obs_type",  # state policies: the recipe's
+    "camera_config",  # nothing is rendered
+    "observation_height",
+    "observation_width",
+    "render_mode",
+    "render_camera",
+    "render_quality",
+    "image_modalities",
+)
+"""The environment settings the trainers set themselves."""
+
+
+def env_changes(args: argparse.Namespace) -> dict[str, Any]:
+    """The ``gym.make`` keywords the flags change over the recipe's environment."""
+    return settings_given(args)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -97,6 +117,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--no-progress", action="store_true", help="no progress bar (e.g. in log files)"
     )
+    add_settings_arguments(
+        parser,
+        exclude=TRAIN_EXCLUDES,
+        defaults=dict.fromkeys(EnvSettings.names()),
+        description="gym.make keywords over the recipe's environment (see docs/keywords.md); "
+        "stored in settings.json, where gym_soarm.evaluate reads them",
+        default_text="default: the recipe's",
+    )
     return parser
 
 
@@ -127,6 +155,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 seed=args.seed,
                 eval_episodes=args.eval_episodes,
                 hyperparams=dict(args.hyperparams),
+                env=env_changes(args),
             )
         else:
             from gym_soarm.rl.training import train
@@ -143,8 +172,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 hyperparams=dict(args.hyperparams),
                 vec_env=args.vec_env,
                 init=args.init,
+                env=env_changes(args),
             )
-    except (ValueError, ImportError) as exc:
+    except (ValueError, TypeError, ImportError) as exc:
         raise SystemExit(f"python -m gym_soarm.train: error: {exc}") from None
     rate = "n/a" if result.success_rate is None else f"{100 * result.success_rate:.0f} %"
     state = "interrupted" if result.interrupted else "done"

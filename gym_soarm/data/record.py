@@ -42,13 +42,14 @@ import gymnasium as gym
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.control import CONTROL_MODES, action_names
+from gym_soarm.control import action_names
 from gym_soarm.data import LeRobotDatasetWriter
 from gym_soarm.data.attempt import FPS, AttemptPlan, record_attempt, write_variation
+from gym_soarm.settings import EnvSettings
 from gym_soarm.tasks import get_task, lift_cube
 from gym_soarm.tasks.suites import distinct_tasks, resolve_selection, shared_state_names
 from gym_soarm.units import FEATURE_NAMES, joint_units
-from gym_soarm.validation import check_choice, check_int, parse_size, resolve_camera_config
+from gym_soarm.validation import ArgumentTypeError, check_int, parse_size, resolve_camera_config
 
 CAMERA_CONFIG_NONE = "none"
 CAMERA_CONFIG_CHOICES: tuple[str, ...] = (*constants.CAMERA_CONFIGS, CAMERA_CONFIG_NONE)
@@ -163,26 +164,96 @@ def dataset_features(
     return features
 
 
-def write_recording_settings(
-    root: str | os.PathLike[str],
-    units: str,
-    wrist_roll_offset_deg: float,
-    calibration: str | os.PathLike[str] | None,
-    control_mode: str,
-    dynamics: str | os.PathLike[str] | None = None,
-) -> None:
-    """Write ``meta/gym_soarm.json``: how to read the dataset's joint values back
-    (:func:`gym_soarm.data.replay.replay` reads it), and the dynamics file the arm
-    moved with."""
-    settings = {
-        "units": units,
-        "wrist_roll_offset_deg": float(wrist_roll_offset_deg),
-        "calibration": None if calibration is None else os.path.abspath(calibration),
-        "control_mode": control_mode,
-        "dynamics": None if dynamics is None else os.path.abspath(dynamics),
+def write_recording_settings(root: str | os.PathLike[str], settings: EnvSettings) -> None:
+    """Write ``meta/gym_soarm.json``: the environment settings the dataset was recorded
+    with (``"env"``, :meth:`~gym_soarm.settings.EnvSettings.to_dict`, file paths made
+    absolute) and, as before, how to read its joint values back (units, wrist offset,
+    calibration, control mode, dynamics). :func:`gym_soarm.data.replay.replay` and
+    :func:`gym_soarm.data.sysid.fit_dynamics` read it."""
+    paths = {
+        name: os.path.abspath(value)
+        for name in ("calibration", "dynamics")
+        if (value := getattr(settings, name)) is not None
+    }
+    stored = settings.replace(**paths) if paths else settings
+    content = {
+        "units": stored.units,
+        "wrist_roll_offset_deg": stored.wrist_roll_offset_deg,
+        "calibration": stored.calibration,
+        "control_mode": stored.control_mode,
+        "dynamics": stored.dynamics,
+        "env": stored.to_dict(),
     }
     path = Path(root) / SETTINGS_PATH
-    path.write_text(json.dumps(settings, indent=2) + "\n", encoding="utf-8")
+    path.write_text(json.dumps(content, indent=2) + "\n", encoding="utf-8")
+
+
+def read_recording_settings(root: str | os.PathLike[str]) -> EnvSettings | None:
+    """The environment settings ``meta/gym_soarm.json`` of a recording stores; None for
+    a dataset without them (not a gym_soarm recording, or an older one).
+
+    Raises:
+        ValueError: the file cannot be read or holds bad settings.
+    """
+    path = Path(root) / SETTINGS_PATH
+    if not path.is_file():
+        return None
+    try:
+        content = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path} cannot be read ({exc}); check the file.") from exc
+    if not isinstance(content, dict) or "env" not in content:
+        return None
+    try:
+        return EnvSettings.from_dict(content["env"])
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{path} holds bad environment settings: {exc}") from exc
+
+
+_RECORD_DEFAULTS: dict[str, Any] = {
+    "units": "lerobot",
+    "wrist_roll_offset_deg": 0.0,
+    "control_mode": "joint_pos",
+    "calibration": None,
+    "dynamics": None,
+}
+
+
+_NOT_RECORDED = ("render_mode", "image_modalities", "normalize_actions")
+"""Settings the recorder leaves at their defaults (the dataset could not hold them)."""
+
+
+def _recording_settings(settings: EnvSettings | None, task: str, **keywords: Any) -> EnvSettings:
+    """The settings of a recording: ``settings`` as given (then ``keywords`` must be the
+    recorder's defaults), else built from ``keywords``."""
+    if settings is None:
+        kwargs = {k: v for k, v in keywords.items() if v is not None or k in _RECORD_DEFAULTS}
+        if kwargs.get("calibration") is not None:
+            kwargs["calibration"] = os.fspath(kwargs["calibration"])
+        return EnvSettings.from_kwargs(task=task, **kwargs)
+    if not isinstance(settings, EnvSettings):
+        raise ArgumentTypeError(
+            f"settings must be a gym_soarm.settings.EnvSettings or None; got "
+            f"{type(settings).__name__}. Build one with EnvSettings(...)."
+        )
+    unfit = {k: v for k, v in settings.changed().items() if k in _NOT_RECORDED}
+    if unfit:
+        raise ValueError(
+            f"the recorder cannot record with {unfit}: it writes RGB videos of the control "
+            f"mode's own actions, without a window. Leave {', '.join(sorted(unfit))} at "
+            "their defaults."
+        )
+    given = sorted(
+        k
+        for k, v in keywords.items()
+        if (v != _RECORD_DEFAULTS[k] if k in _RECORD_DEFAULTS else True)
+    )
+    if given:
+        raise ValueError(
+            f"pass either settings or the keywords {given}, not both. Put them in the "
+            f"settings: settings.replace({'=..., '.join(given)}=...)."
+        )
+    return settings.replace(task=task)
 
 
 def record(
@@ -206,6 +277,7 @@ def record(
     control_mode: str = "joint_pos",
     calibration: str | os.PathLike[str] | None = None,
     dynamics: str | os.PathLike[str] | None = None,
+    settings: EnvSettings | None = None,
 ) -> RecordSummary:
     """Record ``episodes`` episodes of the scripted expert into a dataset folder.
 
@@ -262,6 +334,13 @@ def record(
             :mod:`gym_soarm.calibration`).
         dynamics: a ``gym_soarm.dynamics/1`` file (servo gains, joint figures, control
             delay; see :mod:`gym_soarm.dynamics`) the simulated arm moves with.
+        settings: every environment keyword at once (a
+            :class:`gym_soarm.settings.EnvSettings`), instead of ``units``,
+            ``wrist_roll_offset_deg``, ``calibration``, ``control_mode``, ``dynamics``
+            and ``variation`` (leave those at their defaults then); its ``task``,
+            ``obs_type``, ``camera_config`` and image size are the recorder's own
+            (``task``, ``camera_config`` and ``size``). It is stored in the dataset
+            (``meta/gym_soarm.json``), where replay and sysid read it back.
 
     Raises:
         ValueError: a bad argument; nothing is written then.
@@ -270,8 +349,25 @@ def record(
     selected = distinct_tasks(resolve_selection(task))
     episodes = check_int("episodes", episodes, 1)
     seed = check_int("seed", seed, 0)
+    variation = dict(variation or {})
+    unknown = sorted(set(variation) - set(VARIATION_KEYWORDS))
+    if unknown:
+        raise ValueError(
+            f"variation takes the keywords {', '.join(VARIATION_KEYWORDS)}; got {unknown}."
+        )
+    settings = _recording_settings(
+        settings,
+        selected[0].task,
+        units=units,
+        wrist_roll_offset_deg=wrist_roll_offset_deg,
+        control_mode=control_mode,
+        calibration=calibration,
+        dynamics=dynamics,
+        **variation,
+    )
+    units, wrist_roll_offset_deg = settings.units, settings.wrist_roll_offset_deg
+    calibration, control_mode = settings.calibration, settings.control_mode
     joint_units(units, wrist_roll_offset_deg, calibration)  # checks units, offset, file
-    check_choice("control_mode", control_mode, CONTROL_MODES)
     if keep not in KEEP_CHOICES:
         raise ValueError(f"keep must be one of {', '.join(KEEP_CHOICES)}; got {keep!r}.")
     if isinstance(dart_noise, bool) or not isinstance(dart_noise, (int, float)):
@@ -295,42 +391,25 @@ def record(
             f"start_method must be one of {', '.join(START_METHODS)} or None; got {start_method!r}."
         )
 
-    variation = dict(variation or {})
-    unknown = sorted(set(variation) - set(VARIATION_KEYWORDS))
-    if unknown:
-        raise ValueError(
-            f"variation takes the keywords {', '.join(VARIATION_KEYWORDS)}; got {unknown}."
-        )
-    common_kwargs: dict[str, Any] = {
-        "units": units,
-        "wrist_roll_offset_deg": wrist_roll_offset_deg,
-        "control_mode": control_mode,
-    }
-    if calibration is not None:
-        common_kwargs["calibration"] = os.fspath(calibration)
-    if dynamics is not None:
-        common_kwargs["dynamics"] = os.fspath(dynamics)
     if state_only:
-        common_kwargs["obs_type"] = "environment_state_agent_pos"
+        settings = settings.replace(obs_type="environment_state_agent_pos")
     else:
-        common_kwargs.update(
+        settings = settings.replace(
             obs_type="pixels_agent_pos",
-            camera_config=list(cameras),
+            camera_config=tuple(cameras),
             observation_height=height,
             observation_width=width,
         )
+    common_kwargs = settings.to_kwargs()
+    del common_kwargs["task"]  # each task's gym id gives its own
     started = time.perf_counter()
     # Every task's environment is built (and checked) before anything is written.
     plans: list[AttemptPlan] = []
     robot_type = robot_type_for(units)
-    names = (
-        shared_state_names(tuple(selected), variation.get("object_placement"))
-        if state_only
-        else None
-    )
+    names = shared_state_names(tuple(selected), settings.object_placement) if state_only else None
     for item in selected:
         spec = get_task(item.task)
-        env_kwargs = {**variation, **item.variation, **common_kwargs}
+        env_kwargs = {**common_kwargs, **item.variation}
         gym.make(spec.env_id, **env_kwargs).close()  # checks every keyword for this task
         plans.append(
             AttemptPlan(
@@ -352,9 +431,7 @@ def record(
     writer = LeRobotDatasetWriter.create(
         root, FPS, features, robot_type=robot_type, overwrite=overwrite
     )
-    write_recording_settings(
-        root, units, wrist_roll_offset_deg, calibration, control_mode, dynamics
-    )
+    write_recording_settings(root, settings)
     attempts = successes = 0
     interrupted = False
     bar = None

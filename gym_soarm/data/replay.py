@@ -33,9 +33,17 @@ gripper that closed on an object stops at the object, the simulated one closes f
 expect the gripper's error to show the grasps. A dataset recorded by
 ``python -m gym_soarm.record`` lists each episode's task and reset seed
 (``meta/variation.jsonl``): each episode is replayed in its own task, reset with its own
-seed, so the objects are where they were (a scene's randomisation is not replayed).
+seed, so the objects are where they were.
 Giving ``task`` replays every episode in that scene, episode ``k`` reset with
 ``seed + k``.
+
+**The recording's settings.** A gym_soarm recording stores the environment settings it
+was made with (``meta/gym_soarm.json``, see :class:`gym_soarm.settings.EnvSettings`).
+The replay moves the arm as the recording did: with its ``dynamics`` and
+``servo_model`` (:data:`ARM_SETTINGS`); replaying each episode in its own task and seed
+it also takes the scene's randomisation, placement and distractors
+(:data:`SCENE_SETTINGS`), so every reset draws what the recording's drew. Arguments
+given win over the recording's.
 """
 
 from __future__ import annotations
@@ -55,6 +63,7 @@ from gym_soarm import constants
 from gym_soarm.data.attempt import VARIATION_PATH
 from gym_soarm.data.record import SETTINGS_PATH, robot_type_for
 from gym_soarm.dynamics import load_dynamics
+from gym_soarm.settings import EnvSettings
 from gym_soarm.tasks import get_task, reach_target
 from gym_soarm.units import FEATURE_NAMES, RADIANS, UNITS, joint_units
 from gym_soarm.validation import check_choice, check_int
@@ -104,6 +113,9 @@ class ReplayDataset:
     episodes: dict[int, tuple[np.ndarray, np.ndarray]]
     settings: Mapping[str, Any] | None = None
     """``meta/gym_soarm.json`` of a gym_soarm recording (units, offset, calibration)."""
+    recorded: EnvSettings | None = None
+    """The environment settings a gym_soarm recording was made with (``"env"`` of
+    ``meta/gym_soarm.json``); None for other datasets and older recordings."""
     origins: Mapping[int, tuple[str, int]] | None = None
     """Episode index -> (task, reset seed), from a gym_soarm recording."""
 
@@ -208,7 +220,23 @@ def read_replay_dataset(
         )
         for index in wanted
     }
-    return ReplayDataset(folder, fps, robot_type, units, chosen, settings, origins)
+    recorded = None
+    if settings is not None and "env" in settings:
+        try:
+            recorded = EnvSettings.from_dict(settings["env"])
+        except (TypeError, ValueError) as exc:
+            problem = f"{SETTINGS_PATH} holds bad settings ({exc})"
+            raise _refuse(root, problem, "Check the file.") from exc
+    return ReplayDataset(
+        folder,
+        fps,
+        robot_type,
+        units,
+        chosen,
+        settings=settings,
+        origins=origins,
+        recorded=recorded,
+    )
 
 
 def _read_json(path: Path, root: str | os.PathLike[str]) -> dict[str, Any] | None:
@@ -285,6 +313,8 @@ class ReplayReport:
     robot_type: str | None
     task: str
     episodes: tuple[EpisodeReplay, ...]
+    settings: EnvSettings | None = None
+    """The environment settings replayed with (the first scene's task)."""
 
     def figures(self) -> dict[str, dict[str, float]]:
         """Per joint, over every compared frame of every episode."""
@@ -389,15 +419,75 @@ def frame_of_steps(steps: int, frames: int, fps: float) -> np.ndarray:
     return np.minimum((k * fps // SIM_FPS).astype(int), frames - 2)
 
 
+ARM_SETTINGS: tuple[str, ...] = ("dynamics", "servo_model")
+"""Settings of a recording that replay and sysid take beside its units: how the arm moves."""
+SCENE_SETTINGS: tuple[str, ...] = (
+    "visual_randomization",
+    "physics_randomization",
+    "object_placement",
+    "distractors",
+)
+"""Settings of a recording that a replay takes when it replays each episode in its own
+recorded task and seed: what is on the table and what its resets draw."""
+REPLAY_OVERRIDES: tuple[str, ...] = (*ARM_SETTINGS, *SCENE_SETTINGS)
+"""The environment keywords :func:`replay` takes in ``settings`` (its own arguments give
+the units, offset, calibration and task)."""
+
+
+def replay_settings(
+    dataset: ReplayDataset,
+    task: str | None = None,
+    units: str | None = None,
+    calibration: str | os.PathLike[str] | None = None,
+    wrist_roll_offset_deg: float | None = None,
+    overrides: Mapping[str, Any] | None = None,
+    taken: Sequence[str] = REPLAY_OVERRIDES,
+) -> EnvSettings:
+    """The environment settings to replay ``dataset`` with (``task``: the first scene's).
+
+    State observations and joint targets; the units, offset and calibration of
+    :func:`resolve_units`; the recording's ``taken`` settings (the arm's always, the
+    scene's when each episode is replayed in its recorded task); ``overrides`` win
+    over the recording's.
+
+    Raises:
+        ValueError: a bad value, or an override :data:`REPLAY_OVERRIDES` does not name.
+    """
+    overrides = dict(overrides or {})
+    unknown = sorted(set(overrides) - set(REPLAY_OVERRIDES))
+    if unknown:
+        raise ValueError(
+            f"settings of a replay may be {', '.join(REPLAY_OVERRIDES)}; got {unknown}. Give "
+            "units, calibration, wrist_roll_offset_deg and task as replay's own arguments."
+        )
+    chosen_units, offset, calibration = resolve_units(
+        dataset, units, calibration, wrist_roll_offset_deg
+    )
+    scenes = episode_scenes(dataset, task)
+    own_scenes = task is None and bool(dataset.origins)
+    values: dict[str, Any] = {}
+    recorded = dataset.recorded
+    if recorded is not None:
+        wanted = [k for k in taken if k in ARM_SETTINGS or (own_scenes and k in SCENE_SETTINGS)]
+        values.update({k: getattr(recorded, k) for k in wanted})
+    elif dataset.settings and dataset.settings.get("dynamics") and "dynamics" in taken:
+        values["dynamics"] = dataset.settings["dynamics"]  # recordings before the "env" key
+    values.update(overrides)
+    first = next(iter(scenes.values()))[0] if scenes else (task or REPLAY_TASK)
+    return EnvSettings.from_kwargs(
+        **values,
+        task=first,
+        obs_type="environment_state_agent_pos",
+        units=chosen_units,
+        wrist_roll_offset_deg=offset,
+        calibration=None if calibration is None else os.fspath(calibration),
+    )
+
+
 @contextlib.contextmanager
-def scene_envs(
-    units: str,
-    wrist_roll_offset_deg: float,
-    calibration: str | os.PathLike[str] | None,
-    dynamics: str | os.PathLike[str] | None = None,
-) -> Iterator[Callable[[str], Any]]:
+def scene_envs(settings: EnvSettings) -> Iterator[Callable[[str], Any]]:
     """Environments to replay a dataset in, one per scene: ``env_for(task_name)`` makes
-    one (state observations, the dataset's units) when first asked for it and returns the
+    one with ``settings`` (its task replaced) when first asked for it and returns the
     unwrapped env; all are closed when the block ends."""
     import gymnasium as gym
 
@@ -405,14 +495,8 @@ def scene_envs(
 
     def env_for(name: str) -> Any:
         if name not in envs:
-            envs[name] = gym.make(
-                get_task(name).env_id,
-                obs_type="environment_state_agent_pos",
-                units=units,
-                wrist_roll_offset_deg=wrist_roll_offset_deg,
-                calibration=calibration,
-                dynamics=dynamics,
-            )
+            spec = get_task(name)
+            envs[name] = gym.make(spec.env_id, settings=settings.replace(task=spec.name))
         return envs[name].unwrapped
 
     try:
@@ -431,6 +515,7 @@ def replay(
     task: str | None = None,
     seed: int = 0,
     dynamics: str | os.PathLike[str] | None = None,
+    settings: Mapping[str, Any] | None = None,
 ) -> ReplayReport:
     """Drive the simulation with a dataset's actions; compare with its recorded states.
 
@@ -448,7 +533,10 @@ def replay(
         seed: with ``task`` (or a dataset that lists no origins), episode ``k`` resets the
             scene with ``seed + k``.
         dynamics: a ``gym_soarm.dynamics/1`` file (servo gains, joint figures, control
-            delay; see :mod:`gym_soarm.dynamics`) to replay with; None for the model's own.
+            delay; see :mod:`gym_soarm.dynamics`) to replay with; None for the
+            recording's own (gym_soarm recordings store theirs) or the model's own.
+        settings: further ``gym.make`` keywords of :data:`REPLAY_OVERRIDES` (e.g.
+            ``{"servo_model": "sts3215"}``) over the recording's own.
 
     Raises:
         ValueError: a bad argument or dataset (nothing is simulated then).
@@ -461,14 +549,18 @@ def replay(
     seed = check_int("seed", seed, 0)
     if episodes is not None:
         episodes = [check_int("episode", e, 0) for e in episodes]
+    overrides = dict(settings or {})
     if dynamics is not None:
         load_dynamics(dynamics)  # checks the file first
+        overrides["dynamics"] = os.fspath(dynamics)
     dataset = read_replay_dataset(root, episodes)
-    chosen_units, wrist_roll_offset_deg, calibration = resolve_units(
-        dataset, units, calibration, wrist_roll_offset_deg
+    env_settings = replay_settings(
+        dataset, task, units, calibration, wrist_roll_offset_deg, overrides
     )
+    if env_settings.dynamics is not None:
+        load_dynamics(env_settings.dynamics)  # a recording's file: checked before simulating
     scenes = episode_scenes(dataset, task, seed)
-    with scene_envs(chosen_units, wrist_roll_offset_deg, calibration, dynamics) as env_for:
+    with scene_envs(env_settings) as env_for:
         replays = []
         for index, (actions, states) in dataset.episodes.items():
             name, episode_seed = scenes[index]
@@ -476,7 +568,13 @@ def replay(
             replays.append(_replay_episode(env, index, actions, states, dataset.fps, episode_seed))
     label = ",".join(dict.fromkeys(name for name, _ in scenes.values()))
     return ReplayReport(
-        str(root), chosen_units, dataset.fps, dataset.robot_type, label, tuple(replays)
+        str(root),
+        env_settings.units,
+        dataset.fps,
+        dataset.robot_type,
+        label,
+        tuple(replays),
+        env_settings,
     )
 
 

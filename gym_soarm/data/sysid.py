@@ -44,7 +44,7 @@ import io
 import math
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -58,7 +58,7 @@ from gym_soarm.data.replay import (
     episode_scenes,
     frame_of_steps,
     read_replay_dataset,
-    resolve_units,
+    replay_settings,
     scene_envs,
     start_episode,
 )
@@ -98,6 +98,10 @@ GRID_KV: tuple[float, ...] = (0.4, 0.6, 0.85, 1.2, 1.7, 2.4, 3.4)
 DELAY_SECONDS = 30.0
 """The delay is chosen on the dataset's first episodes, about this many seconds of them."""
 FIT_ITERATIONS = 25
+SYSID_SETTINGS: tuple[str, ...] = ("servo_model", "object_placement", "distractors")
+"""The environment settings a fit takes from a recording (or its ``settings``): the
+servo's force range and what is on the table. Randomisation is left out (a fit needs one
+model) and so are the dynamics (what is fitted)."""
 """Iterations (residual evaluations) of the final fit, at most."""
 FD_STEP = 1e-3
 """Finite-difference step of the factors."""
@@ -383,6 +387,7 @@ def fit_dynamics(
     delays: Sequence[int] = DELAYS,
     iterations: int = FIT_ITERATIONS,
     threads: int | None = None,
+    settings: Mapping[str, Any] | None = None,
 ) -> FitResult:
     """Fit the servo gains, joint figures and control delay to a LeRobot SO-101 dataset.
 
@@ -398,6 +403,11 @@ def fit_dynamics(
         delays: the control delays (steps) to try.
         iterations: at most this many iterations of the final fit.
         threads: rollout threads; None for every core.
+        settings: ``gym.make`` keywords of :data:`SYSID_SETTINGS` over the recording's
+            own (a gym_soarm recording stores its settings; the fit takes its servo
+            model, and with each episode in its own task its placement and
+            distractors). Its ``dynamics`` are never taken: they are what is fitted,
+            from the model's own.
 
     Returns:
         The fitted figures (a :class:`gym_soarm.dynamics.Dynamics` with its ``fit``
@@ -423,8 +433,15 @@ def fit_dynamics(
     threads = check_int("threads", threads if threads is not None else os.cpu_count() or 1, 1)
     sysid = _require_sysid()
     dataset = read_replay_dataset(root, episodes)
-    chosen_units, offset, calibration = resolve_units(
-        dataset, units, calibration, wrist_roll_offset_deg
+    unknown = sorted(set(settings or {}) - set(SYSID_SETTINGS))
+    if unknown:
+        raise ValueError(
+            f"settings of a fit may be {', '.join(SYSID_SETTINGS)}; got {unknown}. The "
+            "dynamics are what the fit finds; give units, calibration, wrist_roll_offset_deg "
+            "and task as its own arguments."
+        )
+    env_settings = replay_settings(
+        dataset, task, units, calibration, wrist_roll_offset_deg, settings, SYSID_SETTINGS
     )
     for index, (_, states) in dataset.episodes.items():
         if len(states) < 2:
@@ -445,7 +462,7 @@ def fit_dynamics(
 
     prepared: list[_Episode] = []
     models: dict[str, mujoco.MjModel] = {}
-    with scene_envs(chosen_units, offset, calibration) as env_for:
+    with scene_envs(env_settings) as env_for:
         for index, (actions, states) in dataset.episodes.items():
             name, episode_seed = scenes[index]
             env = env_for(name)
@@ -493,7 +510,7 @@ def fit_dynamics(
         "frames_compared": problem.frames,
         "seconds": round(seconds, 3),
         "fps": dataset.fps,
-        "units": chosen_units,
+        "units": env_settings.units,
         "rms_before_deg": _rms_per_joint(error_before),
         "rms_after_deg": _rms_per_joint(error_after),
         "overall_rms_before_deg": round(float(np.sqrt(np.mean(error_before**2))), 4),

@@ -54,7 +54,7 @@ import pickle
 import signal
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -73,6 +73,7 @@ from gym_soarm.rl.evaluation import (
     score,
 )
 from gym_soarm.rl.hyperparams import IMITATION, recipe
+from gym_soarm.settings import merge_keywords
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
 from gym_soarm.validation import ArgumentTypeError, check_int, check_number
@@ -438,6 +439,7 @@ def train_imitation(
     seed: int = 0,
     eval_episodes: int | None = None,
     hyperparams: dict[str, Any] | None = None,
+    env: Mapping[str, Any] | None = None,
 ) -> Any:
     """Train ``algo`` (``"bc"`` or ``"dagger"``) on ``task`` from its scripted expert and
     write the policy folder (see the module's documentation).
@@ -451,6 +453,8 @@ def train_imitation(
         seed: the training seed (the network, the noise, the training resets).
         eval_episodes: protocol episodes per evaluation (default: the recipe's).
         hyperparams: values that replace the recipe's ``algo`` keys (``{"demos": 20}``).
+        env: ``gym.make`` keywords over the recipe's environment (see
+            :func:`gym_soarm.rl.training.train`).
 
     Returns:
         A :class:`gym_soarm.rl.training.TrainResult` (``env_steps``: the environment
@@ -468,6 +472,7 @@ def train_imitation(
         )
     spec = get_task(task)  # ValueError naming the registered tasks
     settings = recipe(algo, spec.name)
+    settings["env"] = merge_keywords(settings["env"], spec.name, env)
     seed = check_int("seed", seed, 0)
     if eval_episodes is not None:
         settings["eval_episodes"] = eval_episodes

@@ -31,6 +31,7 @@ import signal
 import threading
 import time
 import warnings
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -56,6 +57,7 @@ from gym_soarm.rl.evaluation import (
     score,
 )
 from gym_soarm.rl.hyperparams import ALGORITHMS, IMITATION, POLICY_CLASSES, VEC_ENVS, recipe
+from gym_soarm.settings import merge_keywords
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
 from gym_soarm.validation import check_choice, check_int
@@ -233,6 +235,7 @@ def train(
     hyperparams: dict[str, Any] | None = None,
     vec_env: str | None = None,
     init: str | os.PathLike[str] | None = None,
+    env: Mapping[str, Any] | None = None,
 ) -> TrainResult:
     """Train ``algo`` on ``task`` with the package's recipe and write its folder.
 
@@ -254,6 +257,9 @@ def train(
             ``"subproc"`` (default: the recipe's, see :mod:`gym_soarm.rl.hyperparams`);
             the episodes and so the run are the same in all three.
         init: PPO only: a policy folder to start from (see the module's documentation).
+        env: ``gym.make`` keywords over the recipe's environment (e.g. ``{"dynamics":
+            PATH}``); checked as :class:`gym_soarm.settings.EnvSettings` checks them, and
+            stored in the folder's ``settings.json`` (evaluation uses them).
 
     Raises:
         ValueError: unknown algorithm or task, a non-positive count, ``out`` a file, an
@@ -267,6 +273,7 @@ def train(
             f"(python -m gym_soarm.train --algo {algo}); train() runs {', '.join(ALGORITHMS)}."
         )
     settings = recipe(algo, spec.name)  # ValueError naming the algorithms
+    settings["env"] = merge_keywords(settings["env"], spec.name, env)
     if init is not None and algo != "ppo":
         raise ValueError(f"init (--init) starts PPO only; got --algo {algo}. Pass --algo ppo.")
     seed = check_int("seed", seed, 0)

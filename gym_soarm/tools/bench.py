@@ -59,7 +59,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -114,17 +114,41 @@ class BenchConfig:
     render_quality: str
     task: str = DEFAULT_TASK
     control_mode: str = DEFAULT_CONTROL_MODE
+    env: tuple[tuple[str, Any], ...] = ()
+    """Further ``gym.make`` keywords (``("dynamics", PATH)``, ...), as sorted pairs."""
 
     @classmethod
     def parse(
-        cls, name: str, task: str = DEFAULT_TASK, control_mode: str = DEFAULT_CONTROL_MODE
+        cls,
+        name: str,
+        task: str = DEFAULT_TASK,
+        control_mode: str = DEFAULT_CONTROL_MODE,
+        env: Mapping[str, Any] | None = None,
     ) -> BenchConfig:
-        """The configuration called ``name``, on ``task`` (a registered task).
+        """The configuration called ``name``, on ``task`` (a registered task), with the
+        further ``gym.make`` keywords ``env`` (not those the name sets).
 
         Raises:
             ValueError: ``name`` is not ``state`` or ``{cameras}_{W}x{H}[_fast|_high]``,
-                ``task`` is not registered, or ``control_mode`` is unknown.
+                ``task`` is not registered, ``control_mode`` is unknown, or ``env`` has
+                a bad or a reserved keyword.
         """
+        config = cls._parse(name, task, control_mode)
+        if not env:
+            return config
+        reserved = sorted(set(env) & {"task", "control_mode", *config.env_kwargs()})
+        if reserved:
+            raise ValueError(
+                f"env keywords {reserved} are set by the configuration name, --task or "
+                "--control-mode; leave them out of env."
+            )
+        from gym_soarm.settings import EnvSettings
+
+        EnvSettings.from_kwargs(task=config.task, **config.env_kwargs(), **env)  # checks
+        return dataclasses.replace(config, env=tuple(sorted(dict(env).items())))
+
+    @classmethod
+    def _parse(cls, name: str, task: str, control_mode: str) -> BenchConfig:
         from gym_soarm.control import CONTROL_MODES
         from gym_soarm.tasks import get_task
         from gym_soarm.validation import check_choice
@@ -177,6 +201,7 @@ class BenchConfig:
                 observation_width=self.width,
                 observation_height=self.height,
             )
+        kwargs.update(self.env)
         return kwargs
 
 
@@ -525,6 +550,7 @@ def measure_config(
         "config": config.name,
         "task": config.task,
         "control_mode": config.control_mode,
+        "env": dict(config.env),
         "model_out": str(model_path),
     }
     env_child = _Child(_worker_args(env_job), dict(os.environ), timeout)
@@ -598,6 +624,7 @@ def measure_config(
             "config": config.name,
             "task": config.task,
             "control_mode": config.control_mode,
+            "env": dict(config.env),
             "seconds": seconds,
             "repeats": repeats,
             "processes": processes,
@@ -854,6 +881,7 @@ def run(
     task: str = DEFAULT_TASK,
     control_mode: str = DEFAULT_CONTROL_MODE,
     vector_scaling: Sequence[int] = (),
+    env: Mapping[str, Any] | None = None,
     vector_obs: Sequence[str] = ("state",),
     vector_modes: Sequence[str] | None = None,
     image_size: tuple[int, int] = DEFAULT_IMAGE_SIZE,
@@ -875,6 +903,8 @@ def run(
         recording_ray: also record as Ray tasks on a local cluster.
         recording_episodes: episodes per recording.
         recording_cameras: ``"none"`` or camera configs, each recorded.
+        env: further ``gym.make`` keywords of the measured configurations (``configs``
+            only), e.g. ``{"dynamics": PATH}``.
 
     Raises:
         ValueError: a configuration name or the control mode is unknown, or
@@ -882,7 +912,7 @@ def run(
     """
     from gym_soarm.tools import bench_record, bench_vector
 
-    parsed = [BenchConfig.parse(name, task, control_mode) for name in configs]
+    parsed = [BenchConfig.parse(name, task, control_mode, env) for name in configs]
     vector_modes = tuple(vector_modes or bench_vector.VECTOR_MODES)
     recording_cameras = tuple(recording_cameras or bench_record.DEFAULT_CAMERAS)
     if recording_episodes is None:
@@ -991,6 +1021,7 @@ def run(
         "settings": {
             "task": task_name,
             "control_mode": control_mode,
+            "env": dict(env or {}),
             "seconds": seconds,
             "repeats": repeats,
             "processes": processes,
@@ -1019,11 +1050,11 @@ def serve_worker(job_text: str) -> None:
     job = json.loads(job_text)
     kind = job["kind"]
     if kind == "env":
-        config = BenchConfig.parse(job["config"], job["task"], job["control_mode"])
+        config = BenchConfig.parse(job["config"], job["task"], job["control_mode"], job["env"])
         _env_worker(config, job["model_out"])
         return
     if kind == "vector":
-        config = BenchConfig.parse(job["config"], job["task"], job["control_mode"])
+        config = BenchConfig.parse(job["config"], job["task"], job["control_mode"], job["env"])
         out = _measure_vector(config, job["seconds"], job["repeats"], job["processes"])
     elif kind == "cold_make":
         out = _measure_cold_make(job["visual"], job["task"])

@@ -1,0 +1,396 @@
+"""One frozen settings object for every ``gym.make`` keyword of gym_soarm.
+
+:class:`EnvSettings` holds the keywords of :class:`gym_soarm.env.SoArmEnv` as fields, each
+with its type, default, a one-line doc and its check; an instance checks (and normalises)
+all of them once, when it is made. ``SoArmEnv`` builds one from its keywords
+(``env.unwrapped.settings``) and also takes one whole (``gym.make(id, settings=s)``); the
+programs generate their command-line flags from the fields
+(:func:`gym_soarm.cli.settings.add_settings_arguments`) and recordings store them
+(:meth:`EnvSettings.to_json`). A new keyword is one field here and its use in ``env.py``.
+
+>>> from gym_soarm.settings import EnvSettings
+>>> s = EnvSettings(task="lift", obs_type="state", servo_model="sts3215")
+>>> s.task, s.camera_config
+('LiftCube-v0', ('front_camera', 'wrist_camera'))
+>>> EnvSettings.from_json(s.to_json()) == s
+True
+
+Files named by ``calibration`` and ``dynamics`` are read when an environment is built,
+not here: a settings object can travel to a machine that holds them elsewhere.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from gym_soarm import constants
+from gym_soarm.control import CONTROL_MODES
+from gym_soarm.render.backend import RENDER_QUALITIES
+from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
+from gym_soarm.tasks import DEFAULT_TASK, get_task
+from gym_soarm.tasks.distractors import MAX_DISTRACTORS
+from gym_soarm.unit_maps import LEROBOT, UNITS, check_wrist_roll_offset
+from gym_soarm.validation import (
+    ArgumentTypeError,
+    check_bool,
+    check_choice,
+    check_image_size,
+    check_int,
+    check_subset,
+    resolve_camera_config,
+)
+
+OBS_TYPES = ("pixels", "pixels_agent_pos", "environment_state_agent_pos", "state")
+STATE_OBS_TYPES = ("environment_state_agent_pos", "state")
+"""The observation types that render nothing."""
+REWARD_TYPES = ("dense", "sparse")
+PLACEMENTS = ("grid", "uniform")
+IMAGE_MODALITIES = ("rgb", "depth", "segmentation")
+RENDER_MODES = ("human", "rgb_array")
+SETTINGS_FORMAT = "gym_soarm.env_settings/1"
+"""The ``format`` of :meth:`EnvSettings.to_dict`'s JSON object."""
+
+
+_PATHS = {
+    "calibration": ("a LeRobot calibration JSON file", "Pass e.g. calibration='follower.json'."),
+    "dynamics": (
+        "a gym_soarm.dynamics/1 JSON file",
+        "Fit one with python -m gym_soarm.sysid.",
+    ),
+}
+
+
+def _check_path(name: str, value: Any) -> str | None:
+    """A file's path as a str (None stays None); the file itself is read by the env."""
+    if value is None:
+        return None
+    if not isinstance(value, (str, os.PathLike)) or not os.fspath(value):
+        what, fix = _PATHS[name]
+        raise ArgumentTypeError(
+            f"{name} must be the path of {what} (str or os.PathLike) or None; got {value!r} "
+            f"({type(value).__name__}). {fix}"
+        )
+    return os.fspath(value)
+
+
+def _choice(valid: Sequence[Any], none_ok: bool = False) -> Callable[[str, Any], Any]:
+    return lambda name, value: check_choice(name, value, valid, none_ok=none_ok)
+
+
+def _setting(
+    default: Any,
+    doc: str,
+    check: Callable[[str, Any], Any],
+    *,
+    choices: Sequence[str] | None = None,
+    type_text: str | None = None,
+    parse: Callable[[str], Any] | None = None,
+    metavar: str | None = None,
+) -> Any:
+    """A field of :class:`EnvSettings`: its default, one-line doc and check.
+
+    ``check(name, value)`` returns the value as stored (normalised) or raises
+    ``ValueError``/``TypeError``; ``choices`` are the valid strings of a choice field
+    (for command lines and docs); ``parse(text)`` reads a command line's text (default:
+    by the default's type: str, int, float or a bool flag); ``metavar`` names its value in
+    ``--help``.
+    """
+    metadata = {
+        "doc": doc,
+        "check": check,
+        "choices": choices,
+        "type_text": type_text,
+        "parse": parse,
+        "metavar": metavar,
+    }
+    if isinstance(default, (list, dict, set)):
+        raise TypeError("settings defaults must be immutable")  # pragma: no cover
+    return field(default=default, metadata=metadata)
+
+
+def _comma_list(text: str) -> tuple[str, ...]:
+    """``"a,b"`` -> ``("a", "b")`` (command lines)."""
+    return tuple(part.strip() for part in text.split(",") if part.strip())
+
+
+def _camera_text(text: str) -> str | tuple[str, ...]:
+    """A camera config's name as is, camera names (``front_camera,wrist_camera``) as a tuple."""
+    return text if text in constants.CAMERA_CONFIGS else _comma_list(text)
+
+
+def _check_task(name: str, value: Any) -> str:
+    return get_task(value).name
+
+
+@dataclass(frozen=True)
+class EnvSettings:
+    """Every keyword of ``gym.make`` for a gym_soarm environment, checked once.
+
+    Fields keep the keywords' names, types and defaults (see :class:`gym_soarm.env.SoArmEnv`
+    for what each does); making an instance checks every field and normalises a few:
+    ``task`` becomes the registered name (``"lift"`` -> ``"LiftCube-v0"``),
+    ``camera_config`` the tuple of camera names, ``image_modalities`` a tuple in the
+    fixed order, paths plain strings, numbers plain ``int``/``float``.
+
+    Raises:
+        ValueError: a value that is not valid; the message names the keyword, what was
+            expected, what came and how to fix it.
+        TypeError: a value of the wrong type (also a ``ValueError``; see
+            :class:`gym_soarm.validation.ArgumentTypeError`).
+    """
+
+    task: str = _setting(
+        DEFAULT_TASK,
+        "a registered task's name or alias (see gym_soarm.tasks.task_names())",
+        _check_task,
+        metavar="TASK",
+    )
+    obs_type: str = _setting(
+        "pixels_agent_pos",
+        "what an observation holds: images, joint positions, task state or one flat vector",
+        _choice(OBS_TYPES),
+        choices=OBS_TYPES,
+    )
+    camera_config: str | Sequence[str] = _setting(
+        constants.DEFAULT_CAMERA_CONFIG,
+        "the cameras of pixel observations: front_only, front_wrist, all or camera names",
+        lambda name, value: resolve_camera_config(value),
+        type_text="str | tuple[str, ...]",
+        parse=_camera_text,
+        metavar="CAMERAS",
+    )
+    observation_height: int = _setting(
+        480, "image height in pixels (16 to 2048)", check_image_size, metavar="PIXELS"
+    )
+    observation_width: int = _setting(
+        640, "image width in pixels (16 to 2048)", check_image_size, metavar="PIXELS"
+    )
+    render_mode: str | None = _setting(
+        None,
+        "what render() does: None, rgb_array (returns an image) or human (a window)",
+        _choice(RENDER_MODES, none_ok=True),
+        choices=RENDER_MODES,
+    )
+    render_camera: str = _setting(
+        constants.DEFAULT_RENDER_CAMERA,
+        "the camera that render() shows in rgb_array mode",
+        _choice(constants.CAMERA_NAMES),
+        choices=constants.CAMERA_NAMES,
+    )
+    render_quality: str = _setting(
+        "fast",
+        "fast (simplified meshes, no shadows) or high (full meshes, shadows, 4x MSAA)",
+        _choice(RENDER_QUALITIES),
+        choices=RENDER_QUALITIES,
+    )
+    reward_type: str = _setting(
+        "dense",
+        "dense (the task's weighted named terms in [0, 1]) or sparse (1 on success)",
+        _choice(REWARD_TYPES),
+        choices=REWARD_TYPES,
+    )
+    units: str = _setting(
+        "radians",
+        "joint units of actions and agent_pos: radians, lerobot (degrees) or lerobot_range",
+        _choice(UNITS),
+        choices=UNITS,
+    )
+    wrist_roll_offset_deg: float = _setting(
+        0.0,
+        "with LeRobot units: the real arm's wrist_roll reading (deg) at the model's 0 rad",
+        # Type and range here; whether the units take an offset, in __post_init__.
+        lambda name, value: check_wrist_roll_offset(LEROBOT, value),
+        metavar="DEG",
+    )
+    image_modalities: Sequence[str] = _setting(
+        ("rgb",),
+        "images of each camera: a tuple of rgb, depth and segmentation",
+        lambda name, value: check_subset(name, value, IMAGE_MODALITIES),
+        choices=IMAGE_MODALITIES,
+        type_text="tuple[str, ...]",
+        parse=_comma_list,
+        metavar="MODALITIES",
+    )
+    visual_randomization: str = _setting(
+        "none",
+        "lights, colours and cameras drawn at every reset: none, light or heavy",
+        _choice(LEVELS),
+        choices=LEVELS,
+    )
+    physics_randomization: str = _setting(
+        "none",
+        "masses, friction, servo gains and damping drawn at every reset: none, light or heavy",
+        _choice(LEVELS),
+        choices=LEVELS,
+    )
+    servo_model: str = _setting(
+        "ideal",
+        "ideal (targets are the actions) or sts3215 (the follower's speed-limited servos)",
+        _choice(SERVO_MODELS),
+        choices=SERVO_MODELS,
+    )
+    object_placement: str | None = _setting(
+        None,
+        "how objects start: grid or uniform (None: the task's default)",
+        _choice(PLACEMENTS, none_ok=True),
+        choices=PLACEMENTS,
+    )
+    distractors: int = _setting(
+        0,
+        f"extra objects on the table, 0 to {MAX_DISTRACTORS}",
+        lambda name, value: check_int(name, value, 0, MAX_DISTRACTORS),
+        metavar="N",
+    )
+    control_mode: str = _setting(
+        "joint_pos",
+        "what an action means: joint_pos, joint_delta, ee_delta or ee_pose",
+        _choice(CONTROL_MODES),
+        choices=CONTROL_MODES,
+    )
+    calibration: str | os.PathLike[str] | None = _setting(  # noqa: RUF009
+        None,
+        "with LeRobot units: a real follower's LeRobot calibration JSON (None: fixed maps)",
+        _check_path,
+        type_text="str | None",
+        metavar="PATH",
+    )
+    dynamics: str | os.PathLike[str] | None = _setting(  # noqa: RUF009
+        None,
+        "a gym_soarm.dynamics/1 JSON (python -m gym_soarm.sysid): servo and joint figures",
+        _check_path,
+        type_text="str | None",
+        metavar="PATH",
+    )
+    normalize_actions: bool = _setting(
+        False,
+        "True: actions in Box(-1, 1), mapped linearly onto the control mode's bounds",
+        check_bool,
+    )
+
+    def __post_init__(self) -> None:
+        for item in dataclasses.fields(self):
+            value = item.metadata["check"](item.name, getattr(self, item.name))
+            object.__setattr__(self, item.name, value)
+        # Checks across fields.
+        check_wrist_roll_offset(self.units, self.wrist_roll_offset_deg)
+        get_task(self.task).make_task(self.object_placement)  # refuses an unsupported placement
+
+    # --- construction and conversion ---------------------------------------------------
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        """The field names, in the order of ``SoArmEnv``'s keywords."""
+        return tuple(item.name for item in dataclasses.fields(cls))
+
+    @classmethod
+    def from_kwargs(cls, **kwargs: Any) -> EnvSettings:
+        """Settings from ``gym.make`` keywords; an unknown keyword raises ``TypeError``
+        that lists the known ones."""
+        unknown = sorted(set(kwargs) - set(cls.names()))
+        if unknown:
+            raise TypeError(
+                f"unknown gym_soarm environment keyword(s) {unknown}; the keywords are "
+                f"{', '.join(cls.names())}. Check the spelling (see docs/keywords.md)."
+            )
+        return cls(**kwargs)
+
+    def to_kwargs(self) -> dict[str, Any]:
+        """The settings as ``gym.make`` keywords (every field, normalised)."""
+        return {name: getattr(self, name) for name in self.names()}
+
+    def replace(self, **changes: Any) -> EnvSettings:
+        """A copy with ``changes`` (checked like :meth:`from_kwargs`)."""
+        return type(self).from_kwargs(**{**self.to_kwargs(), **changes})
+
+    def changed(self) -> dict[str, Any]:
+        """The fields that differ from the defaults (of a fresh ``EnvSettings()`` with this
+        task), as keywords."""
+        default = type(self)(task=self.task)
+        return {n: v for n, v in self.to_kwargs().items() if v != getattr(default, n)}
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready dict: ``{"format": ..., <field>: value, ...}`` (tuples as lists)."""
+        data: dict[str, Any] = {"format": SETTINGS_FORMAT}
+        for name, value in self.to_kwargs().items():
+            data[name] = list(value) if isinstance(value, tuple) else value
+        return data
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> EnvSettings:
+        """Settings from :meth:`to_dict`'s dict; fields it lacks keep their defaults.
+
+        Raises:
+            ValueError: not a dict of this format, or a bad value.
+            TypeError: an unknown field (see :meth:`from_kwargs`).
+        """
+        if not isinstance(data, Mapping):
+            raise ArgumentTypeError(
+                f"settings must be a JSON object (dict) of the format {SETTINGS_FORMAT!r}; "
+                f"got {type(data).__name__}."
+            )
+        kwargs = dict(data)
+        found = kwargs.pop("format", SETTINGS_FORMAT)
+        if found != SETTINGS_FORMAT:
+            raise ValueError(
+                f"settings format must be {SETTINGS_FORMAT!r}; got {found!r}. Write it with "
+                "EnvSettings.to_dict()."
+            )
+        for name in ("camera_config", "image_modalities"):
+            if isinstance(kwargs.get(name), list):
+                kwargs[name] = tuple(kwargs[name])
+        return cls.from_kwargs(**kwargs)
+
+    def to_json(self) -> str:
+        """:meth:`to_dict` as JSON text."""
+        return json.dumps(self.to_dict(), indent=2)
+
+    @classmethod
+    def from_json(cls, text: str) -> EnvSettings:
+        """Settings from :meth:`to_json`'s text."""
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"settings are not JSON ({exc}); write them with to_json().") from exc
+        return cls.from_dict(data)
+
+
+def setting_fields() -> tuple[dataclasses.Field, ...]:
+    """The fields of :class:`EnvSettings`, in keyword order."""
+    return dataclasses.fields(EnvSettings)
+
+
+def type_text(item: dataclasses.Field) -> str:
+    """A field's type as the docs show it."""
+    return item.metadata.get("type_text") or str(item.type)
+
+
+def keyword_table() -> str:
+    """The Markdown table of every keyword: name, command-line flag, type, default, doc."""
+    lines = [
+        "| keyword | flag | type | default | what it sets |",
+        "|---|---|---|---|---|",
+    ]
+    for item in setting_fields():
+        doc = item.metadata["doc"].replace("|", "\\|")
+        kind = type_text(item).replace("|", "\\|")
+        flag = "--" + item.name.replace("_", "-")
+        lines.append(f"| `{item.name}` | `{flag}` | `{kind}` | `{item.default!r}` | {doc} |")
+    return "\n".join(lines) + "\n"
+
+
+def merge_keywords(
+    base: Mapping[str, Any], task: str, changes: Mapping[str, Any] | None = None
+) -> dict[str, Any]:
+    """``base`` keywords (e.g. a recipe's environment) with ``changes``, checked together
+    for ``task`` as :class:`EnvSettings` checks them; only the keywords given are kept.
+
+    Raises:
+        ValueError, TypeError: an unknown keyword or a bad value.
+    """
+    merged = {**dict(base), **dict(changes or {})}
+    EnvSettings.from_kwargs(**{"task": task, **merged})
+    return merged
