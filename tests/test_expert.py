@@ -236,6 +236,22 @@ def test_cli_prints_the_success_rate(capsys):
     assert out.startswith("LiftCube-v0: 36/36 = 100.0 % success")
 
 
+def test_cli_measures_either_kind_of_expert(capsys):
+    # The timed script takes its fixed phases (72-78 steps on reach); the state expert
+    # heads straight for the ball and arrives sooner.
+    main(["--task", "reach", "--seeds", "5", "--kind", "scripted"])
+    scripted = capsys.readouterr().out
+    main(["--task", "reach", "--seeds", "5"])
+    state = capsys.readouterr().out
+    assert scripted.startswith("ReachTarget-v0: 5/5 = 100.0 % success")
+    assert state.startswith("ReachTarget-v0: 5/5 = 100.0 % success")
+    median = lambda out: int(out.split("(median ")[1].split(")")[0])  # noqa: E731
+    assert median(state) < median(scripted)
+    with pytest.raises(SystemExit):
+        main(["--task", "reach", "--kind", "timed"])
+    assert "invalid choice: 'timed'" in capsys.readouterr().err
+
+
 def test_goal_pad_is_clear_of_every_start_cell_and_seen_by_both_scene_cameras(make_env):
     env = make_env("SoArm-v0", obs_type="pixels", camera_config="all", **SMALL)
     env.reset(seed=0, options={"cube_grid_position": 6})

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from gym_soarm.cli.options import add_settings_arguments, settings_from_args, task_selection
-from gym_soarm.expert import EpisodeResult, evaluate, evaluate_protocol
+from gym_soarm.expert import EXPERT_KINDS, EpisodeResult, evaluate, evaluate_protocol
 from gym_soarm.expert.perturbed import PERTURBATIONS, PerturbedResult, evaluate_perturbed
 from gym_soarm.settings import EnvSettings
 from gym_soarm.tasks import get_task, task_names
@@ -68,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The program's command line."""
     parser = argparse.ArgumentParser(
         prog="python -m gym_soarm.expert",
-        description="Measure the scripted expert's success rate on each task: grid tasks "
+        description="Measure the expert's success rate on each task: grid tasks "
         "over 9 cells x 4 yaws x 3 seeds, the others over seeds 0-99 (or, with --protocol, "
         f"on the benchmark's seeds {EVAL_SEED} + k).",
     )
@@ -105,6 +105,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="instead: the success from perturbed states (random actions, a push, a dropped "
         "object, half-closed jaws), N episodes of each per task (default 20)",
+    )
+    parser.add_argument(
+        "--kind",
+        choices=EXPERT_KINDS,
+        default="state",
+        help="state: the expert that acts from the state (default); scripted: the timed script",
     )
     parser.add_argument("--verbose", action="store_true", help="print every failed episode")
     add_settings_arguments(
@@ -143,12 +149,13 @@ def main(argv: Sequence[str] | None = None) -> None:
         except ValueError as exc:  # also TypeError: ArgumentTypeError is both
             parser.error(str(exc))
         if args.perturbed is not None:
-            _report_perturbed(item.task, evaluate_perturbed(item.task, args.perturbed, **kwargs))
+            results = evaluate_perturbed(item.task, args.perturbed, kind=args.kind, **kwargs)
+            _report_perturbed(item.task, results)
             continue
         if args.protocol is not None:
-            results = evaluate_protocol(item.task, args.protocol, **kwargs)
+            results = evaluate_protocol(item.task, args.protocol, kind=args.kind, **kwargs)
         else:
-            results = evaluate(item.task, args.seeds, **kwargs)
+            results = evaluate(item.task, args.seeds, kind=args.kind, **kwargs)
         label = item.task if not item.variation else f"{item.group}/{item.task}"
         _report(label, get_task(item.task).max_episode_steps, results, started, args.verbose)
 

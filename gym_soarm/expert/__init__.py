@@ -147,12 +147,16 @@ def run_episode(
     return EpisodeResult(seed, options, bool(info["is_success"]), steps, total)
 
 
-def evaluate(task: str, seeds: int | None = None, **env_kwargs: Any) -> list[EpisodeResult]:
-    """Run ``task``'s expert over its evaluation resets (state observations)."""
+def evaluate(
+    task: str, seeds: int | None = None, kind: str = "state", **env_kwargs: Any
+) -> list[EpisodeResult]:
+    """Run ``task``'s expert (of ``kind``, see :func:`make_expert`) over its evaluation
+    resets (state observations)."""
+    check_choice("kind", kind, EXPERT_KINDS)
     spec = get_task(task)
     env = gym.make(spec.env_id, obs_type="environment_state_agent_pos", **env_kwargs)
     try:
-        expert = make_expert(env)
+        expert = make_expert(env, kind=kind)
         return [
             run_episode(env, expert, seed, options)
             for seed, options in evaluation_resets(
@@ -163,13 +167,17 @@ def evaluate(task: str, seeds: int | None = None, **env_kwargs: Any) -> list[Epi
         env.close()
 
 
-def evaluate_protocol(task: str, episodes: int, **env_kwargs: Any) -> list[EpisodeResult]:
-    """Run ``task``'s expert on the benchmark's protocol: episode ``k`` resets with seed
-    ``EVAL_SEED + k`` and no options, as ``lerobot-eval`` resets it (state observations)."""
+def evaluate_protocol(
+    task: str, episodes: int, kind: str = "state", **env_kwargs: Any
+) -> list[EpisodeResult]:
+    """Run ``task``'s expert (of ``kind``) on the benchmark's protocol: episode ``k``
+    resets with seed ``EVAL_SEED + k`` and no options, as ``lerobot-eval`` resets it
+    (state observations)."""
+    check_choice("kind", kind, EXPERT_KINDS)
     spec = get_task(task)
     env = gym.make(spec.env_id, obs_type="environment_state_agent_pos", **env_kwargs)
     try:
-        expert = make_expert(env)
+        expert = make_expert(env, kind=kind)
         return [run_episode(env, expert, EVAL_SEED + k, None) for k in range(episodes)]
     finally:
         env.close()

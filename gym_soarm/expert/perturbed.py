@@ -24,9 +24,9 @@ import gymnasium as gym
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.expert import make_expert
+from gym_soarm.expert import EXPERT_KINDS, make_expert
 from gym_soarm.tasks import get_task
-from gym_soarm.validation import check_int, check_subset
+from gym_soarm.validation import check_choice, check_int, check_subset
 
 PERTURBATIONS: tuple[str, ...] = ("random", "push", "drop", "jaws")
 """The perturbations :func:`evaluate_perturbed` knows."""
@@ -59,10 +59,10 @@ def _hold_action(env: gym.Env, gripper_rad: float, arm_change: np.ndarray | None
     return base.control.action_for_targets(targets, commanded)
 
 
-def _run(env: gym.Env, perturbation: str, seed: int) -> PerturbedResult:
+def _run(env: gym.Env, perturbation: str, seed: int, kind: str) -> PerturbedResult:
     base = env.unwrapped
     rng = np.random.default_rng(seed)
-    expert = make_expert(env)
+    expert = make_expert(env, kind=kind)
     obs, info = env.reset(seed=seed)
     objects = [item.name for item in base.task_spec.scene.objects]
     applied = False
@@ -100,9 +100,14 @@ def _run(env: gym.Env, perturbation: str, seed: int) -> PerturbedResult:
 
 
 def evaluate_perturbed(
-    task: str, episodes: int = 20, perturbations: Sequence[str] = PERTURBATIONS, **env_kwargs
+    task: str,
+    episodes: int = 20,
+    perturbations: Sequence[str] = PERTURBATIONS,
+    kind: str = "state",
+    **env_kwargs,
 ) -> list[PerturbedResult]:
-    """Run ``task``'s expert after each perturbation on ``episodes`` unseen seeds.
+    """Run ``task``'s expert (of ``kind``, see :func:`~gym_soarm.expert.make_expert`)
+    after each perturbation on ``episodes`` unseen seeds.
 
     Raises:
         ValueError: an unknown perturbation or task, or ``episodes`` < 1.
@@ -110,12 +115,13 @@ def evaluate_perturbed(
     spec = get_task(task)
     episodes = check_int("episodes", episodes, 1)
     perturbations = check_subset("perturbations", perturbations, PERTURBATIONS)
+    check_choice("kind", kind, EXPERT_KINDS)
     env = gym.make(spec.env_id, obs_type="environment_state_agent_pos", **env_kwargs)
     try:
         objects = bool(spec.scene.objects)
         grasps = objects and hasattr(make_expert(env), "grasp_object")
         return [
-            _run(env, perturbation, PERTURBED_SEED + k)
+            _run(env, perturbation, PERTURBED_SEED + k, kind)
             for perturbation in perturbations
             if perturbation in ("random", "jaws")
             or (perturbation == "push" and objects)
