@@ -122,7 +122,7 @@ def test_ctrl_c_keeps_every_finished_episode(tmp_path):
     root = tmp_path / "ds"
     command = [
         *(sys.executable, "-m", "gym_soarm.record", "--task", "LiftCube-v0"),
-        *("--episodes", "1000", "--seed", "0", "--root", str(root), "--no-progress"),
+        *("--episodes", "50", "--seed", "0", "--root", str(root), "--no-progress"),
         *("--camera-config", "none", "--workers", "2"),
     ]
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
