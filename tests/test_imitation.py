@@ -145,14 +145,33 @@ def test_ppo_starts_from_the_imitation_policy(tmp_path, bc_reach):
           vec_env="dummy", init=bc_reach)  # fmt: skip
     settings = read_settings(out)
     assert settings["algo"] == "ppo" and settings["init"] == str(bc_reach)
-    assert settings["recipe"]["init"]["log_std"] == -1.5
+    assert settings["recipe"]["init"]["log_std"] == -3.0
     ppo = TrainedPolicy(out).model.policy.state_dict()
     bc = TrainedPolicy(bc_reach).model.policy.state_dict()
     assert ppo.keys() == bc.keys()
     for key, value in bc.items():  # learning rate 0: the BC weights kept
         if key != "log_std":
             assert np.array_equal(value.numpy(), ppo[key].numpy()), key
-    assert np.allclose(ppo["log_std"].numpy(), -1.5)
+    assert np.allclose(ppo["log_std"].numpy(), -3.0)
+
+
+def test_ppo_from_a_pretrained_actor_first_trains_only_its_critic(tmp_path, bc_reach):
+    # A PPO update or two, within the recipe's critic warm-up: the actor stays as BC left it
+    # (the BC term waits too), the value branch learns.
+    out = tmp_path / "ppo"
+    train("ppo", "reach", out, seed=0, steps=256, eval_every=256, eval_episodes=1,
+          hyperparams={"n_steps": 16, "batch_size": 32, "n_epochs": 2},
+          vec_env="dummy", init=bc_reach)  # fmt: skip
+    assert read_settings(out)["recipe"]["init"]["critic_warmup"] >= 1
+    bc = TrainedPolicy(bc_reach).model.policy.state_dict()
+    ppo = TrainedPolicy(out).model.policy.state_dict()
+    actor = [k for k in bc if k.startswith(("mlp_extractor.policy_net", "action_net"))]
+    critic = [k for k in bc if k.startswith(("mlp_extractor.value_net", "value_net"))]
+    assert actor and critic
+    for key in actor:
+        assert np.array_equal(bc[key].numpy(), ppo[key].numpy()), key
+    assert np.allclose(ppo["log_std"].numpy(), -3.0)
+    assert any(not np.array_equal(bc[k].numpy(), ppo[k].numpy()) for k in critic)
 
 
 def test_init_from_another_task_is_refused_naming_both(tmp_path, bc_reach):

@@ -24,7 +24,9 @@ Keys of a recipe:
   ``log_std`` (the log standard deviation of the exploration noise at the start, low so
   that the pretrained policy is not wrecked), ``bc_coef`` (weight of the
   behaviour-cloning term on the actor, against the demonstrations saved in ``DIR``),
-  ``bc_decay`` (``bc_coef`` is multiplied by it after each PPO update), ``bc_batch_size``.
+  ``bc_decay`` (``bc_coef`` is multiplied by it after each PPO update), ``bc_batch_size``,
+  ``critic_warmup`` (the first PPO updates in which only the value branch learns, the
+  actor frozen: the critic starts untrained).
 
 The imitation trainers (:mod:`gym_soarm.rl.imitation`, ``--algo bc`` and ``--algo
 dagger``) keep the same ``env``, ``n_envs`` (environments stepped together in one
@@ -98,7 +100,13 @@ HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "ent_coef": 0.0,
                 "policy_kwargs": {"net_arch": [128, 128]},
             },
-            "init": {"log_std": -1.5, "bc_coef": 1.0, "bc_decay": 0.99, "bc_batch_size": 256},
+            "init": {
+                "log_std": -3.0,
+                "bc_coef": 1.0,
+                "bc_decay": 0.995,
+                "bc_batch_size": 256,
+                "critic_warmup": 10,
+            },
         },
         REACH: {"steps": 1_000_000, "eval_every": 50_000},
         LIFT: {

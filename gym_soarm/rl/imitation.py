@@ -731,6 +731,14 @@ def bc_regularized_ppo_class() -> type:
             bc_coef: float = 0.0
             bc_decay: float = 1.0
             bc_batch_size: int = 256
+            critic_warmup: int = 0
+            """PPO updates left in which only the value branch learns (the actor's
+            parameters frozen): a pretrained actor with an untrained critic would
+            otherwise be pushed by the critic's noise."""
+
+            def actor_parameters(self) -> list[Any]:
+                """The parameters of the actor (its branch, action head and log std)."""
+                return [*actor_parameters(self.policy), self.policy.log_std]
 
             def set_demonstrations(
                 self,
@@ -750,6 +758,18 @@ def bc_regularized_ppo_class() -> type:
                 return [*super()._excluded_save_params(), "demo_obs", "demo_actions"]
 
             def train(self) -> None:
+                if self.critic_warmup > 0:
+                    frozen = self.actor_parameters()
+                    for parameter in frozen:
+                        parameter.requires_grad_(False)
+                    try:
+                        super().train()
+                    finally:
+                        for parameter in frozen:
+                            parameter.requires_grad_(True)
+                    self.critic_warmup -= 1
+                    self.logger.record("train/critic_warmup_left", self.critic_warmup)
+                    return
                 super().train()
                 if self.demo_obs is None or not len(self.demo_obs) or self.bc_coef <= 0:
                     return

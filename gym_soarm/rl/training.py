@@ -213,6 +213,7 @@ def _ppo_from(source: dict[str, Any], venv: Any, seed: int, settings: dict[str, 
     init = settings["init"]
     with torch.no_grad():
         model.policy.log_std.fill_(float(init["log_std"]))
+    model.critic_warmup = int(init["critic_warmup"])
     if source["_demos"] is not None:
         demos = Dataset.load(source["_demos"])
         model.set_demonstrations(
