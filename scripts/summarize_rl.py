@@ -46,7 +46,7 @@ def summarize(root: Path) -> dict[str, dict]:
             seeds.append(
                 {
                     "seed": settings["seed"],
-                    "folder": folder.name,
+                    "folder": folder.relative_to(root).as_posix(),
                     "success_rate": rate,
                     "episodes": episodes,
                     "env_steps": int(curve[-1]["env_steps"]),
@@ -84,9 +84,12 @@ def plot(root: Path, summary: dict[str, dict], path: Path) -> None:
         minutes = np.mean([[row["wall_s"] / 60 for row in c[:n]] for c in curves], axis=0)
         label = f"{group['algo'].upper()} {group['task']} ({len(curves)} seeds)"
         for axis, x in ((left, steps), (right, minutes)):
-            (line,) = axis.plot(x, rates.mean(axis=0), label=label)
+            # Markers, so that a one-row curve (a BC run: one evaluation) shows too.
+            (line,) = axis.plot(x, rates.mean(axis=0), marker="o", markersize=4, label=label)
             axis.fill_between(x, rates.min(axis=0), rates.max(axis=0), alpha=0.2,
                               color=line.get_color())  # fmt: skip
+            if n == 1:  # the seeds' spread of a single evaluation
+                axis.vlines(x, rates.min(axis=0), rates.max(axis=0), color=line.get_color())
     left.set_xlabel("environment steps")
     right.set_xlabel("wall time, training and evaluation (min, 2 CPU cores)")
     for axis in (left, right):
