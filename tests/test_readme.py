@@ -127,6 +127,6 @@ def test_the_quick_start_runs(tmp_path):
 
 
 def test_the_readme_expert_snippet_succeeds(tmp_path):
-    result = _run(code_after("The scripted expert also drives any"), tmp_path)
+    result = _run(code_after("The expert also drives any"), tmp_path)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip().endswith("True")
