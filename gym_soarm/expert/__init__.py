@@ -1,4 +1,4 @@
-"""Scripted experts: ``make_expert(env)`` for any registered task, and their success rate.
+"""Experts: ``make_expert(env)`` for any registered task (acting from the state, or the timed script), and their success rate.
 
 Each task's expert lives beside the task, in its module under :mod:`gym_soarm.tasks`
 (the machinery is :mod:`gym_soarm.tasks.scripted`). It reads the simulation state
