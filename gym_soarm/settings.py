@@ -78,14 +78,10 @@ def _check_path(name: str, value: Any) -> str | None:
     return os.fspath(value)
 
 
-def _choice(valid: Sequence[Any], none_ok: bool = False) -> Callable[[str, Any], Any]:
-    return lambda name, value: check_choice(name, value, valid, none_ok=none_ok)
-
-
 def _setting(
     default: Any,
     doc: str,
-    check: Callable[[str, Any], Any],
+    check: Callable[[str, Any], Any] | None = None,
     *,
     choices: Sequence[str] | None = None,
     type_text: str | None = None,
@@ -96,10 +92,19 @@ def _setting(
 
     ``check(name, value)`` returns the value as stored (normalised) or raises
     ``ValueError``/``TypeError``; ``choices`` are the valid strings of a choice field
-    (for command lines and docs); ``parse(text)`` reads a command line's text (default:
+    (for command lines and docs), and without a ``check`` the value must be one of them
+    (or None, where None is the default); ``parse(text)`` reads a command line's text (default:
     by the default's type: str, int, float or a bool flag); ``metavar`` names its value in
     ``--help``.
     """
+    if check is None:
+        if choices is None:
+            raise TypeError("a setting needs a check or its choices")  # pragma: no cover
+        valid, none_ok = choices, default is None
+
+        def check(name: str, value: Any) -> Any:
+            return check_choice(name, value, valid, none_ok=none_ok)
+
     metadata = {
         "doc": doc,
         "check": check,
@@ -153,7 +158,6 @@ class EnvSettings:
     obs_type: str = _setting(
         "pixels_agent_pos",
         "what an observation holds: images, joint positions, task state or one flat vector",
-        _choice(OBS_TYPES),
         choices=OBS_TYPES,
     )
     camera_config: str | Sequence[str] = _setting(
@@ -173,31 +177,26 @@ class EnvSettings:
     render_mode: str | None = _setting(
         None,
         "what render() does: None, rgb_array (returns an image) or human (a window)",
-        _choice(RENDER_MODES, none_ok=True),
         choices=RENDER_MODES,
     )
     render_camera: str = _setting(
         constants.DEFAULT_RENDER_CAMERA,
         "the camera that render() shows in rgb_array mode",
-        _choice(constants.CAMERA_NAMES),
         choices=constants.CAMERA_NAMES,
     )
     render_quality: str = _setting(
         "fast",
         "fast (simplified meshes, no shadows) or high (full meshes, shadows, 4x MSAA)",
-        _choice(RENDER_QUALITIES),
         choices=RENDER_QUALITIES,
     )
     reward_type: str = _setting(
         "dense",
         "dense (the task's weighted named terms in [0, 1]) or sparse (1 on success)",
-        _choice(REWARD_TYPES),
         choices=REWARD_TYPES,
     )
     units: str = _setting(
         "radians",
         "joint units of actions and agent_pos: radians, lerobot (degrees) or lerobot_range",
-        _choice(UNITS),
         choices=UNITS,
     )
     wrist_roll_offset_deg: float = _setting(
@@ -219,25 +218,21 @@ class EnvSettings:
     visual_randomization: str = _setting(
         "none",
         "lights, colours and cameras drawn at every reset: none, light or heavy",
-        _choice(LEVELS),
         choices=LEVELS,
     )
     physics_randomization: str = _setting(
         "none",
         "masses, friction, servo gains and damping drawn at every reset: none, light or heavy",
-        _choice(LEVELS),
         choices=LEVELS,
     )
     servo_model: str = _setting(
         "ideal",
         "ideal (targets are the actions) or sts3215 (the follower's speed-limited servos)",
-        _choice(SERVO_MODELS),
         choices=SERVO_MODELS,
     )
     object_placement: str | None = _setting(
         None,
         "how objects start: grid or uniform (None: the task's default)",
-        _choice(PLACEMENTS, none_ok=True),
         choices=PLACEMENTS,
     )
     distractors: int = _setting(
@@ -249,7 +244,6 @@ class EnvSettings:
     control_mode: str = _setting(
         "joint_pos",
         "what an action means: joint_pos, joint_delta, ee_delta or ee_pose",
-        _choice(CONTROL_MODES),
         choices=CONTROL_MODES,
     )
     calibration: str | os.PathLike[str] | None = _setting(  # noqa: RUF009
