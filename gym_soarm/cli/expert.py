@@ -18,7 +18,12 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
-from gym_soarm.cli.options import add_settings_arguments, settings_from_args, task_selection
+from gym_soarm.cli.options import (
+    IMAGE_SETTINGS,
+    add_settings_arguments,
+    settings_from_args,
+    task_selection,
+)
 from gym_soarm.expert import EXPERT_KINDS, EpisodeResult, evaluate, evaluate_protocol
 from gym_soarm.expert.perturbed import PERTURBATIONS, PerturbedResult, evaluate_perturbed
 from gym_soarm.settings import EnvSettings
@@ -34,13 +39,7 @@ from gym_soarm.tasks.suites import (
 EXPERT_EXCLUDES: tuple[str, ...] = (
     "task",  # --task: tasks, suites or all
     "obs_type",  # the expert reads the state: environment_state_agent_pos
-    "camera_config",  # nothing is rendered
-    "observation_height",
-    "observation_width",
-    "render_mode",
-    "render_camera",
-    "render_quality",
-    "image_modalities",
+    *IMAGE_SETTINGS,  # nothing is rendered
 )
 """The environment settings the expert's measurement sets itself."""
 EXPERT_OBS_TYPE = "environment_state_agent_pos"

@@ -92,6 +92,17 @@ def camera_config_argument(text: str) -> str | list[str]:
 
 
 # --- flags generated from the environment settings --------------------------------------
+IMAGE_SETTINGS: tuple[str, ...] = (
+    "camera_config",
+    "observation_height",
+    "observation_width",
+    "render_mode",
+    "render_camera",
+    "render_quality",
+    "image_modalities",
+)
+"""The settings of images and windows: fixed by the programs that render nothing."""
+
 SETTINGS_DEST = "_settings_fields"
 """The ``argparse.Namespace`` attribute listing the settings fields a parser has flags for."""
 

@@ -18,7 +18,12 @@ import logging
 from collections.abc import Sequence
 from typing import Any
 
-from gym_soarm.cli.options import add_settings_arguments, int_at_least, settings_given
+from gym_soarm.cli.options import (
+    IMAGE_SETTINGS,
+    add_settings_arguments,
+    int_at_least,
+    settings_given,
+)
 from gym_soarm.rl.hyperparams import IMITATION, TRAINERS, VEC_ENVS
 from gym_soarm.settings import EnvSettings
 from gym_soarm.tasks import task_names
@@ -41,13 +46,7 @@ def _hyperparam(text: str) -> tuple[str, Any]:
 TRAIN_EXCLUDES: tuple[str, ...] = (
     "task",  # --task
     "obs_type",  # state policies: the recipe's
-    "camera_config",  # nothing is rendered
-    "observation_height",
-    "observation_width",
-    "render_mode",
-    "render_camera",
-    "render_quality",
-    "image_modalities",
+    *IMAGE_SETTINGS,  # nothing is rendered
 )
 """The environment settings the trainers set themselves."""
 
