@@ -27,6 +27,7 @@ from gym_soarm.settings import OBS_TYPES as OBS_TYPES
 from gym_soarm.settings import PLACEMENTS as PLACEMENTS
 from gym_soarm.settings import REWARD_TYPES as REWARD_TYPES
 from gym_soarm.settings import STATE_OBS_TYPES, EnvSettings
+from gym_soarm.sim.arrays import SimArrays, item
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.sim.randomization import STS3215, Randomizer, Sts3215Servo
 from gym_soarm.snapshot import Snapshot
@@ -732,17 +733,19 @@ class SoArmEnv(gym.Env):
         self._step_count += 1
         if divergence is not None:
             return self._truncate_diverged_episode(divergence)
-        evaluation = self._task.evaluate(self._physics)
-        success = self._task.is_success(self._physics, evaluation)
-        terms = self._task.reward_terms(self._physics, evaluation)
+        task = self._task
+        sim = task.arrays(self._physics)
+        evaluation = task.evaluate(sim)
+        success = bool(evaluation["success"][0])
+        terms = task.batch_reward_terms(evaluation)
         if self.reward_type == "sparse":
             reward = float(success)
         elif success:
             reward = self._success_reward()
         else:
-            reward = self._task.weights.total(terms)
-        obs = self._observation()
-        info = self._info(evaluation, terms)
+            reward = float(task.weights.total(terms)[0])
+        obs = self._observation(sim)
+        info = self._info(sim, evaluation, terms)
         if self._viewer is not None:
             self._viewer.show(info)
         return obs, reward, success, False, info
@@ -877,14 +880,17 @@ class SoArmEnv(gym.Env):
             self._renderers[(height, width)] = renderer
         return renderer
 
-    def _observation(self) -> Any:
+    def _observation(self, sim: SimArrays | None = None) -> Any:
+        """The observation now (``sim``: this step's arrays of the simulation, if made)."""
         physics = self._physics
         if self.obs_type == "state":
-            obs = self._state_observation(physics, self._commanded)
+            sim = self._task.arrays(physics) if sim is None else sim
+            obs = self._state_observation.batch(sim, self._commanded[None])[0]
         elif self.obs_type == "environment_state_agent_pos":
+            sim = self._task.arrays(physics) if sim is None else sim
             obs = {
                 "agent_pos": self._units.from_radians(physics.joint_angles()),
-                "environment_state": self._task.environment_state(physics),
+                "environment_state": np.asarray(self._task.batch_state(sim))[0],
             }
         elif self.image_modalities != ("rgb",):
             obs = self._modality_observation()
@@ -925,24 +931,30 @@ class SoArmEnv(gym.Env):
         return (("pixels", self._rgb), ("depth", self._depth), ("segmentation", self._segmentation))
 
     def _info(
-        self, evaluation: dict[str, Any] | None = None, terms: dict[str, float] | None = None
+        self,
+        sim: SimArrays | None = None,
+        evaluation: dict[str, Any] | None = None,
+        terms: dict[str, Any] | None = None,
     ) -> dict[str, Any]:
         """The info of a sound state (a diverged step builds its own from the last one).
 
-        ``evaluation`` and ``terms``: the step's task evaluation and reward terms; a reset
-        evaluates the task here, once.
+        ``sim``, ``evaluation`` and ``terms``: the step's arrays, task evaluation and
+        reward terms (a batch of one); a reset evaluates the task here, once.
         """
         physics = self._physics
         task = self._task
+        if sim is None:
+            sim = task.arrays(physics)
         if evaluation is None:
-            evaluation = task.evaluate(physics)
+            evaluation = task.evaluate(sim)
         if terms is None:
-            terms = task.reward_terms(physics, evaluation)
+            terms = task.batch_reward_terms(evaluation)
+        task_info = task.compute_info(sim, evaluation)
         self._last_info = {
-            "is_success": bool(task.is_success(physics, evaluation)),
-            **task.episode_info(physics, evaluation),
+            "is_success": bool(evaluation["success"][0]),
+            **{key: item(value) for key, value in task_info.items()},
             "gripper_pos": physics.gripper_position(),
-            "reward_terms": dict(terms),
+            "reward_terms": {name: float(value[0]) for name, value in terms.items()},
             "task": self.task_description,
             "physics_unstable": False,
             **self._control.info(),

@@ -18,6 +18,7 @@ import pytest
 import gym_soarm
 import gym_soarm.expert
 from gym_soarm.data.record import record
+from gym_soarm.sim.arrays import SimArrays, namespace
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
@@ -39,10 +40,8 @@ class LiftBlockTask(Task):
 
     weights = RewardWeights({"grasp": 0.4, "lift": 0.6})
     state_fields: ClassVar = (
-        position_field(
-            "block_pos", "block", lambda physics, task: physics.object_position(BLOCK.name)
-        ),
-        scalar_field("block_yaw", 4.0, lambda physics, task: [physics.object_yaw(BLOCK.name)]),
+        position_field("block_pos", "block", lambda sim, task: sim.object_position(BLOCK.name)),
+        scalar_field("block_yaw", 4.0, lambda sim, task: sim.object_yaw(BLOCK.name)),
     )
 
     def initialize_episode(self, physics: SoArmPhysics, rng: np.random.Generator, options) -> None:
@@ -52,18 +51,20 @@ class LiftBlockTask(Task):
         position = np.array([x, y, BLOCK.rest_height_m])
         physics.set_object_pose(BLOCK.name, position, placement.yaw_quaternion(yaw))
 
-    def evaluate(self, physics: SoArmPhysics) -> dict:
-        grasped = physics.grasped(BLOCK.name)
-        height = physics.object_height(BLOCK.name)
-        return {"success": grasped and height >= LIFT_M, "grasped": grasped, "height_m": height}
+    # Array code over a batch of environments: (n,) values, written once.
+    def evaluate(self, sim: SimArrays) -> dict:
+        grasped = sim.grasped(BLOCK.name)
+        height = sim.object_height(BLOCK.name)
+        return {"success": grasped & (height >= LIFT_M), "grasped": grasped, "height_m": height}
 
-    def compute_reward_terms(self, evaluation: dict) -> dict[str, float]:
-        if not evaluation["grasped"]:
-            return {"grasp": 0.0, "lift": 0.0}
-        return {"grasp": 1.0, "lift": min(max(evaluation["height_m"] / LIFT_M, 0.0), 1.0)}
+    def compute_reward_terms(self, evaluation: dict) -> dict:
+        xp = namespace(evaluation["height_m"])
+        held = xp.astype(evaluation["grasped"], xp.float64)
+        lift = xp.minimum(xp.maximum(evaluation["height_m"] / LIFT_M, 0.0), 1.0)
+        return {"grasp": held, "lift": held * lift}
 
-    def compute_info(self, physics: SoArmPhysics, evaluation: dict) -> dict:
-        return {"block_pos": physics.object_position(BLOCK.name)}
+    def compute_info(self, sim: SimArrays, evaluation: dict) -> dict:
+        return {"block_pos": sim.object_position(BLOCK.name)}
 
 
 class LiftBlockExpert(LiftExpert):

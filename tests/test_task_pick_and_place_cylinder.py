@@ -37,7 +37,7 @@ def test_cylinder_starts_upright_in_the_region_clear_of_the_pad_and_the_arm(env)
     for seed in range(40):
         _, info = env.reset(seed=seed)
         x, y, z = physics.object_position("cylinder").tolist()
-        assert [x, y] == info["cylinder_start_xy"]
+        assert [x, y] == list(info["cylinder_start_xy"])
         assert x0 <= x <= x1 and y0 <= y <= y1
         assert abs(x) >= cyl.ARM_SHADOW_HALF_WIDTH_M + cyl.CYLINDER_RADIUS_M
         assert math.hypot(x - px, y - py) >= cyl.PAD_RADIUS_M + cyl.CYLINDER_RADIUS_M

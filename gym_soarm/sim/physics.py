@@ -22,6 +22,7 @@ from dm_control.rl import control
 
 from gym_soarm import constants
 from gym_soarm.sim import objects, scene
+from gym_soarm.sim.arrays import SimIndex
 
 logger = logging.getLogger(__name__)
 _WARNING_NAMES: tuple[str, ...] = tuple(mujoco.mjtWarning.__members__)
@@ -184,6 +185,8 @@ class SoArmPhysics(dm_mujoco.Physics):
                 joint=joint,
                 qpos_adr=int(m.jnt_qposadr[joint]) if joint >= 0 else -1,
             )
+        self.sim_index = SimIndex.of_model(m, self.layout)
+        """Where this scene's parts lie in its arrays (:class:`~gym_soarm.sim.arrays.SimIndex`)."""
         self._geom_groups: dict[str, frozenset[int]] = {
             "table": self._table_geoms,
             **{name: index.geoms for name, index in self._objects.items()},

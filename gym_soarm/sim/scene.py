@@ -38,7 +38,7 @@ ROBOT_FILE = "so101.xml"
 SCENE_FILE = "scene.xml"
 VISUAL_VARIANTS: tuple[str, ...] = tuple(visual_meshes.MESH_SETTINGS)  # ("fast", "high")
 # Bump when the way models are built changes, so old cached binaries are not reused.
-MODEL_CACHE_VERSION = 2
+MODEL_CACHE_VERSION = 3
 
 
 def _asset_text(name: str) -> str:
@@ -170,8 +170,54 @@ def _add_layout(spec: mujoco.MjSpec, scene: objects.Scene) -> mujoco.MjSpec:
         _add_fixture(spec, fixture, parents, materials, moving)
     for item in scene.objects:
         _add_object(spec, item, materials)
+    _add_contact_sensors(spec, scene)
     spec.add_key(name=constants.HOME_KEYFRAME, ctrl=[0.0] * len(constants.JOINT_NAMES))
     return spec
+
+
+def contact_sensor_name(first: str, second: str) -> str:
+    """The name of the contact sensor between two scene parts (its order is the sensor's)."""
+    return f"contact:{first}:{second}"
+
+
+def _contact_sensor(
+    spec: mujoco.MjSpec, first: tuple[mujoco.mjtObj, str], second: tuple[mujoco.mjtObj, str]
+) -> None:
+    spec.add_sensor(
+        name=contact_sensor_name(first[1], second[1]),
+        type=mujoco.mjtSensor.mjSENS_CONTACT,
+        objtype=first[0],
+        objname=first[1],
+        reftype=second[0],
+        refname=second[1],
+        intprm=[1, 0, 1],  # data="found": how many contacts match
+    )
+
+
+def _add_contact_sensors(spec: mujoco.MjSpec, scene: objects.Scene) -> None:
+    """A ``found`` contact sensor for every contact a task asks about.
+
+    Tasks read contacts from these sensors (positions stage, so current after every
+    step), which is what lets them be evaluated over a batch of simulations whose
+    contact lists are not kept: each jaw pad against each object and each collidable
+    fixture part, and each object against the table, every other object and every
+    fixture. Sensors never change the dynamics.
+    """
+    geom, body = mujoco.mjtObj.mjOBJ_GEOM, mujoco.mjtObj.mjOBJ_BODY
+    names = [item.name for item in scene.objects]
+    for k, name in enumerate(names):
+        for pad in constants.JAW_PAD_GEOMS:
+            _contact_sensor(spec, (geom, pad), (geom, name))
+        _contact_sensor(spec, (geom, name), (geom, constants.TABLE_GEOM))
+        for other in names[k + 1 :]:
+            _contact_sensor(spec, (geom, name), (geom, other))
+        for fixture in scene.fixtures:
+            _contact_sensor(spec, (geom, name), (body, fixture.name))
+    for fixture in scene.fixtures:
+        for index, part in enumerate(fixture.geoms):
+            if part.collides:
+                for pad in constants.JAW_PAD_GEOMS:
+                    _contact_sensor(spec, (geom, pad), (geom, f"{fixture.name}_{index}"))
 
 
 def model_cache_name(scene: objects.Scene, visual: str, label: str = "scene") -> str:

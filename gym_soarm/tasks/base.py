@@ -13,6 +13,15 @@ provides the physics (``dm_control.mujoco.Physics``: named access, reset context
 the task is this small protocol of our own, so no hook exists that nobody calls.
 Tasks never draw random numbers of their own: the environment hands every hook that
 needs them its ``np_random`` generator.
+
+What a task scores is written once, as array code over a batch of environments (as
+ManiSkill writes its tasks): :meth:`Task.evaluate`, :meth:`Task.compute_reward_terms`,
+:meth:`Task.compute_info` and the state fields read a
+:class:`~gym_soarm.sim.arrays.SimArrays` and answer one value per environment. One
+environment is a batch of one; the batched vector env (:mod:`gym_soarm.batch`) scores all
+its simulations in one call. The code uses the array API only (NumPy here, torch tensors
+the same), so another physics backend hands over its arrays and the tasks stay as they
+are. Resets and placement stay per environment, on the physics.
 """
 
 from __future__ import annotations
@@ -27,6 +36,8 @@ from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 import numpy as np
 
 from gym_soarm import constants
+from gym_soarm.sim.arrays import Array, SimArrays, item
+from gym_soarm.sim.arrays import namespace as sim_namespace
 from gym_soarm.sim.objects import Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.validation import ArgumentTypeError
@@ -46,12 +57,17 @@ class RewardWeights:
             raise ValueError(f"reward weights must sum to 1, got {dict(self.terms)!r}")
         object.__setattr__(self, "terms", MappingProxyType(dict(self.terms)))
 
-    def total(self, values: Mapping[str, float]) -> float:
-        return float(sum(w * values[name] for name, w in self.terms.items()))
+    def total(self, values: Mapping[str, Array]) -> Array:
+        """The weighted sum of the terms (one per environment)."""
+        weighted = [w * values[name] for name, w in self.terms.items()]
+        total = weighted[0]
+        for value in weighted[1:]:
+            total = total + value
+        return total
 
 
-StateReader = Callable[[SoArmPhysics, "Task"], Any]
-"""What a state field reads: ``read(physics, task)`` -> its values (array-like, float)."""
+StateReader = Callable[[SimArrays, "Task"], Array]
+"""What a state field reads: ``read(sim, task)`` -> its ``(n, size)`` values."""
 
 
 class StateField(NamedTuple):
@@ -61,7 +77,7 @@ class StateField(NamedTuple):
         name: the field (``"cube_pos"``).
         names: the name of each value, for datasets (``("cube_x", "cube_y", "cube_z")``).
         bound: every value lies within [-bound, bound] (metres for positions).
-        read: ``read(physics, task)`` -> the field's ``size`` values now.
+        read: ``read(sim, task)`` -> the field's values now, ``(n, size)``.
     """
 
     name: str
@@ -87,19 +103,19 @@ def quaternion_field(name: str, prefix: str, read: StateReader) -> StateField:
 
 
 def scalar_field(name: str, bound: float, read: StateReader) -> StateField:
-    """One number within [-bound, bound], read by ``read`` (a sequence of one value)."""
-    return StateField(name, (name,), bound, read)
+    """One number within [-bound, bound], read by ``read`` (``(n,)``: one per environment)."""
+    return StateField(name, (name,), bound, lambda sim, task: read(sim, task)[:, None])
 
 
 def object_position_field(name: str) -> StateField:
     """``{name}_pos``: the position (m) of object ``name``'s centre."""
-    return position_field(f"{name}_pos", name, lambda physics, task: physics.object_position(name))
+    return position_field(f"{name}_pos", name, lambda sim, task: sim.object_position(name))
 
 
 def object_quaternion_field(name: str) -> StateField:
     """``{name}_quat_wxyz``: the orientation of object ``name``."""
     return quaternion_field(
-        f"{name}_quat_wxyz", name, lambda physics, task: physics.object_quaternion(name)
+        f"{name}_quat_wxyz", name, lambda sim, task: sim.object_quaternion(name)
     )
 
 
@@ -110,19 +126,18 @@ def object_pose_fields(name: str) -> tuple[StateField, StateField]:
 
 def fixture_position_field(name: str, fixture: str) -> StateField:
     """``{name}_pos``: the position (m) of fixture ``fixture``'s site."""
-    return position_field(
-        f"{name}_pos", name, lambda physics, task: physics.fixture_position(fixture)
-    )
+    return position_field(f"{name}_pos", name, lambda sim, task: sim.fixture_position(fixture))
 
 
 GRIPPER_POSITION_FIELD = position_field(
-    "gripper_pos", "gripper", lambda physics, task: physics.gripper_position()
+    "gripper_pos", "gripper", lambda sim, task: sim.gripper_position()
 )
 """``gripper_pos``: the position (m) of the ``gripperframe`` site."""
 
 
 Evaluation = dict[str, Any]
-"""What :meth:`Task.evaluate` found: ``"success"`` and the task's own flags and distances."""
+"""What :meth:`Task.evaluate` found, one value per environment: ``"success"`` (bool) and
+the task's own flags and distances."""
 
 
 class Task:
@@ -132,12 +147,16 @@ class Task:
     it reads) and implement :meth:`initialize_episode`, :meth:`evaluate` and
     :meth:`compute_reward_terms`; tasks with reset options set :attr:`option_keys` and
     override :meth:`validate_options`; :meth:`compute_info` adds the task's own ``info``
-    keys.
+    keys; :attr:`episode_shapes` declares what the task keeps between steps.
 
-    The environment evaluates the task once a step (:meth:`evaluate`: the success flag
-    and the predicates and distances the reward and the info need, as ManiSkill's
-    ``evaluate()``) and hands the evaluation to :meth:`reward_terms`, :meth:`is_success`
-    and :meth:`episode_info`; called with the physics alone, they evaluate it themselves.
+    :meth:`evaluate`, :meth:`compute_reward_terms`, :meth:`compute_info` and the state
+    fields are array code over a batch of environments (a
+    :class:`~gym_soarm.sim.arrays.SimArrays`): the environment evaluates the task once a
+    step (the success flag and the predicates and distances the reward and the info
+    need, as ManiSkill's ``evaluate()``) and hands the evaluation to the others.
+    :meth:`is_success`, :meth:`reward_terms`, :meth:`episode_info` and
+    :meth:`environment_state` answer the same for one environment's physics (a batch of
+    one), as plain values.
 
     Args:
         spec: the task's registered declaration (scene, instructions, step limit).
@@ -152,11 +171,19 @@ class Task:
     goal_pairs: ClassVar[tuple[tuple[str, str], ...]] = ()
     """(object, goal) position fields of :attr:`state_fields`: ``obs_type="state"`` adds
     the vector from each object to its goal (``("cube_pos", "goal_pos")``)."""
+    episode_shapes: ClassVar[Mapping[str, tuple[int, ...]]] = MappingProxyType({})
+    """The values the task keeps per episode, by name, with their shape for one
+    environment (``()`` for a number): its reset sets them and :meth:`evaluate` may
+    update them (:attr:`SimArrays.episode <gym_soarm.sim.arrays.SimArrays.episode>`)."""
 
     def __init__(self, spec: TaskSpec) -> None:
         self.spec = spec
         self.instruction = spec.instructions[0]
         self.placement = spec.default_placement
+        self.episode: dict[str, np.ndarray] = {
+            name: np.zeros((1, *shape)) for name, shape in self.episode_shapes.items()
+        }
+        """This environment's :attr:`episode_shapes` values, each as a batch of one."""
 
     def set_placement(self, placement: str | None) -> None:
         """Choose how objects start (``None``: the task's default); ValueError if unsupported."""
@@ -205,40 +232,62 @@ class Task:
         """Apply the (validated, clipped) joint targets in radians."""
         physics.set_joint_targets(action)
 
-    # --- observation, reward, success ----------------------------------------------------
-    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
-        """The values of :attr:`state_fields`, each as its ``read`` finds it, concatenated."""
-        return np.concatenate([field.read(physics, self) for field in self.state_fields])
-
-    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
+    # --- the batched definitions ---------------------------------------------------------
+    def evaluate(self, sim: SimArrays) -> Evaluation:
         """The task's predicates and distances now, computed once a step.
 
+        Args:
+            sim: the simulations to score, ``n`` of them.
+
         Returns:
-            A dict with ``"success"`` (bool) and whatever :meth:`compute_reward_terms` and
-            :meth:`compute_info` read (``"grasped"``, ``"goal_distance_m"``, ...).
+            A dict of ``(n,)`` arrays: ``"success"`` (bool) and whatever
+            :meth:`compute_reward_terms` and :meth:`compute_info` read (``"grasped"``,
+            ``"goal_distance_m"``, ...).
         """
         raise NotImplementedError(
-            f"{type(self).__name__} must implement evaluate(physics) -> dict with 'success'."
+            f"{type(self).__name__} must implement evaluate(sim) -> dict with 'success'."
         )
 
-    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
-        """The named reward terms, each in [0, 1], of a state that is not a success.
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
+        """The named reward terms, each ``(n,)`` in [0, 1], of states that are not a success.
 
-        Read from ``evaluation`` (:meth:`evaluate`'s); a success scores every term 1.
+        Read from ``evaluation`` (:meth:`evaluate`'s); :meth:`batch_reward_terms` scores
+        every term of a success 1.
         """
         raise NotImplementedError(
             f"{type(self).__name__} must implement compute_reward_terms(evaluation)."
         )
 
-    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
-        """The task's own ``info`` keys (the environment adds the common ones)."""
+    def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Array]:
+        """The task's own ``info`` keys, each ``(n, ...)`` (the environment adds the common ones)."""
         return {}
+
+    def batch_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
+        """The named reward terms, ``(n,)`` each in [0, 1], that never fall as the task
+        progresses: :meth:`compute_reward_terms`, every term 1 on a success."""
+        success = evaluation["success"]
+        terms = self.compute_reward_terms(evaluation)
+        xp = sim_namespace(success)
+        return {name: xp.where(success, 1.0, terms[name]) for name in self.weights.terms}
+
+    def batch_state(self, sim: SimArrays) -> Array:
+        """``(n, size)``: the values of :attr:`state_fields`, concatenated."""
+        return sim.xp.concat([field.read(sim, self) for field in self.state_fields], axis=1)
+
+    def arrays(self, physics: SoArmPhysics) -> SimArrays:
+        """One environment's simulation as a batch of one, with this task's episode values."""
+        return SimArrays.of_physics(physics, self.episode)
+
+    # --- one environment, as plain values ------------------------------------------------
+    def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
+        """The values of :attr:`state_fields`, each as its ``read`` finds it, concatenated."""
+        return np.asarray(self.batch_state(self.arrays(physics)))[0]
 
     def is_success(self, physics: SoArmPhysics, evaluation: Evaluation | None = None) -> bool:
         """Whether the task is done (``evaluation``: :meth:`evaluate`'s, when the caller has it)."""
         if evaluation is None:
-            evaluation = self.evaluate(physics)
-        return evaluation["success"]
+            evaluation = self.evaluate(self.arrays(physics))
+        return bool(evaluation["success"][0])
 
     def reward_terms(
         self, physics: SoArmPhysics, evaluation: Evaluation | None = None
@@ -247,21 +296,22 @@ class Task:
 
         Args:
             physics: the simulation to score.
-            evaluation: :meth:`evaluate`'s, when the caller already has it.
+            evaluation: :meth:`evaluate`'s of it (a batch of one), when the caller has it.
         """
         if evaluation is None:
-            evaluation = self.evaluate(physics)
-        if evaluation["success"]:
-            return dict.fromkeys(self.weights.terms, 1.0)
-        return self.compute_reward_terms(evaluation)
+            evaluation = self.evaluate(self.arrays(physics))
+        return {
+            name: float(value[0]) for name, value in self.batch_reward_terms(evaluation).items()
+        }
 
     def episode_info(
         self, physics: SoArmPhysics, evaluation: Evaluation | None = None
     ) -> dict[str, Any]:
         """The task's own ``info`` keys (``evaluation``: :meth:`evaluate`'s, when the caller has it)."""
+        sim = self.arrays(physics)
         if evaluation is None:
-            evaluation = self.evaluate(physics)
-        return self.compute_info(physics, evaluation)
+            evaluation = self.evaluate(sim)
+        return {key: item(value) for key, value in self.compute_info(sim, evaluation).items()}
 
     def evaluation_resets(self, seeds: int) -> list[tuple[int, dict[str, Any] | None]]:
         """(seed, options) of the episodes the expert is measured on: seeds 0 .. seeds-1."""

@@ -11,11 +11,13 @@ import dataclasses
 import math
 import numbers
 from collections.abc import Mapping, Sequence
+from types import MappingProxyType
 from typing import Any, ClassVar
 
 import numpy as np
 
 from gym_soarm import constants
+from gym_soarm.sim.arrays import SimArrays
 from gym_soarm.sim.objects import SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
@@ -109,6 +111,8 @@ class CubeGridTask(Task):
 
     option_keys: ClassVar[tuple[str, ...]] = GRID_OPTION_KEYS
     placements: ClassVar[tuple[str, ...]] = ("grid", "uniform")
+    episode_shapes: ClassVar = MappingProxyType({"grid_cell": (), "yaw_deg": ()})
+    """The cube's start cell (-1 when placed anywhere) and yaw, for the info."""
     cube = CUBE.name
 
     def __init__(self, spec) -> None:
@@ -148,13 +152,15 @@ class CubeGridTask(Task):
             placement.yaw_quaternion(yaw),
         )
         self.start = GridStart(cell, yaw)
+        self.episode["grid_cell"][0] = -1 if cell is None else cell
+        self.episode["yaw_deg"][0] = yaw
 
-    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
-        start = self.start
+    def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Any]:
+        cells = np.asarray(sim.episode["grid_cell"]).tolist()
         return {
-            "cube_grid_position": start.grid_cell,
-            "cube_rotation_deg": start.yaw_deg,
-            "cube_pos": physics.object_position(self.cube),
+            "cube_grid_position": [None if c < 0 else int(c) for c in cells],
+            "cube_rotation_deg": sim.episode["yaw_deg"],
+            "cube_pos": sim.object_position(self.cube),
         }
 
     def evaluation_resets(self, seeds: int) -> list[tuple[int, dict[str, Any] | None]]:

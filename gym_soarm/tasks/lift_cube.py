@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+from gym_soarm.sim.arrays import Array, SimArrays
 from gym_soarm.sim.objects import Scene
-from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks.base import Evaluation, RewardWeights, TaskSpec
 from gym_soarm.tasks.cube import CUBE, CUBE_STATE_FIELDS, CubeGridTask
 from gym_soarm.tasks.rewards import LIFT_HEIGHT_M, lift_progress, pick_progress, pick_terms
@@ -24,14 +24,14 @@ class LiftTask(CubeGridTask):
     weights = RewardWeights({"reach": 0.2, "grasp": 0.3, "lift": 0.5})
     state_fields: ClassVar = CUBE_STATE_FIELDS
 
-    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
-        progress = pick_progress(physics, self.cube)
+    def evaluate(self, sim: SimArrays) -> Evaluation:
+        progress = pick_progress(sim, self.cube)
         return {
-            "success": progress["grasped"] and progress["height_m"] >= LIFT_HEIGHT_M,
+            "success": progress["grasped"] & (progress["height_m"] >= LIFT_HEIGHT_M),
             **progress,
         }
 
-    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
         return pick_terms(
             grasped=evaluation["grasped"],
             reach_distance_m=evaluation["reach_distance_m"],

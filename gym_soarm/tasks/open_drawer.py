@@ -36,12 +36,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from types import MappingProxyType
 from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 
 from gym_soarm import constants
+from gym_soarm.sim.arrays import Array, SimArrays
+from gym_soarm.sim.arrays import namespace as sim_namespace
+from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.kinematics import downward_rotation
 from gym_soarm.sim.objects import Fixture, FixtureGeom, FixtureJoint, Scene
 from gym_soarm.sim.physics import SoArmPhysics
@@ -56,7 +60,7 @@ from gym_soarm.tasks.base import (
     quaternion_field,
     scalar_field,
 )
-from gym_soarm.tasks.rewards import norm, reach_closeness
+from gym_soarm.tasks.rewards import reach_closeness
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase, ScriptedExpert
 from gym_soarm.tasks.state_expert import Move, StateExpert
 
@@ -262,12 +266,8 @@ def slide_direction(physics: SoArmPhysics) -> np.ndarray:
     return physics.fixture_joint_axis(DRAWER.name)
 
 
-def _cabinet_position(physics: SoArmPhysics, task: Task) -> np.ndarray:
-    return physics.fixture_body_pose(CABINET.name)[0]
-
-
-def _cabinet_quaternion(physics: SoArmPhysics, task: Task) -> np.ndarray:
-    return physics.fixture_body_pose(CABINET.name)[1]
+HANDLE_PARTS: tuple[str, ...] = tuple(f"{DRAWER.name}_{i}" for i in HANDLE_GEOM_INDICES)
+"""The names of the handle's parts (bar and posts), as contacts name them."""
 
 
 class OpenDrawerTask(Task):
@@ -279,17 +279,19 @@ class OpenDrawerTask(Task):
         scalar_field(
             "drawer_opening",
             1.0,
-            lambda physics, task: [physics.fixture_joint_position(DRAWER.name)],
+            lambda sim, task: sim.fixture_joint_position(DRAWER.name),
         ),
-        position_field("cabinet_pos", "cabinet", _cabinet_position),
-        quaternion_field("cabinet_quat_wxyz", "cabinet", _cabinet_quaternion),
+        position_field("cabinet_pos", "cabinet", lambda sim, task: sim.episode["cabinet_pos"]),
+        quaternion_field(
+            "cabinet_quat_wxyz", "cabinet", lambda sim, task: sim.episode["cabinet_quat"]
+        ),
         GRIPPER_POSITION_FIELD,
     )
 
-    def __init__(self, spec: TaskSpec) -> None:
-        super().__init__(spec)
-        self._cabinet_yaw = 0.0
-        self._handle_geoms: frozenset[int] | None = None
+    episode_shapes: ClassVar = MappingProxyType(
+        {"cabinet_pos": (3,), "cabinet_quat": (4,), "cabinet_yaw": ()}
+    )
+    """Where this episode placed the cabinet: its position (m), quaternion and yaw (rad)."""
 
     def initialize_episode(
         self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
@@ -297,39 +299,42 @@ class OpenDrawerTask(Task):
         physics.reset_to_home()  # also closes the drawer: its joint's home is 0
         position, yaw = drawer_placement(rng)
         place_fixture(physics, CABINET.name, position, yaw)
-        self._cabinet_yaw = yaw
-        self._handle_geoms = handle_geoms(physics)
+        body_position, body_quaternion = physics.fixture_body_pose(CABINET.name)
+        self.episode["cabinet_pos"][0] = body_position
+        self.episode["cabinet_quat"][0] = body_quaternion
+        self.episode["cabinet_yaw"][0] = yaw
 
-    def _handle(self, physics: SoArmPhysics) -> frozenset[int]:
-        if self._handle_geoms is None:
-            self._handle_geoms = handle_geoms(physics)
-        return self._handle_geoms
-
-    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
-        opening = physics.fixture_joint_position(DRAWER.name)
+    def evaluate(self, sim: SimArrays) -> Evaluation:
+        opening = sim.fixture_joint_position(DRAWER.name)
+        touched = sim.xp.zeros_like(opening > 0)
+        for part in HANDLE_PARTS:
+            fixed, moving = sim.jaw_contacts(part)
+            touched = touched | fixed | moving
         return {
             "success": opening >= OPEN_SUCCESS_M,
             "opening_m": opening,
-            "handle_touched": any(physics.jaw_contacts_with(self._handle(physics))),
-            "handle_distance_m": norm(
-                physics.grasp_center() - physics.fixture_position(DRAWER.name)
-            ),
+            "handle_touched": touched,
+            "handle_distance_m": batch_norm(sim.grasp_center() - sim.fixture_position(DRAWER.name)),
         }
 
-    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
+        xp = sim_namespace(evaluation["opening_m"])
         opening = evaluation["opening_m"]
-        opened = min(max(opening / OPEN_SUCCESS_M, 0.0), 1.0)
-        if opening >= STAGE_CREDIT_OPEN_M or evaluation["handle_touched"]:
-            return {"reach": 1.0, "grasp": 1.0, "open": opened}
+        opened = xp.minimum(xp.maximum(opening / OPEN_SUCCESS_M, 0.0), 1.0)
+        staged = (opening >= STAGE_CREDIT_OPEN_M) | evaluation["handle_touched"]
         reach = reach_closeness(evaluation["handle_distance_m"])
-        return {"reach": reach, "grasp": 0.0, "open": opened}
+        return {
+            "reach": xp.where(staged, 1.0, reach),
+            "grasp": xp.astype(staged, opening.dtype),
+            "open": opened,
+        }
 
-    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
+    def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Any]:
         return {
             "drawer_opening_m": evaluation["opening_m"],
-            "handle_pos": physics.fixture_position(DRAWER.name),
-            "cabinet_pos": physics.fixture_body_pose(CABINET.name)[0],
-            "cabinet_yaw_deg": math.degrees(self._cabinet_yaw),
+            "handle_pos": sim.fixture_position(DRAWER.name),
+            "cabinet_pos": sim.episode["cabinet_pos"],
+            "cabinet_yaw_deg": sim.episode["cabinet_yaw"] * (180.0 / math.pi),
         }
 
 

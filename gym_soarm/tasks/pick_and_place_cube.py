@@ -8,14 +8,14 @@ as complete, so the reward never falls as the task progresses.
 
 from __future__ import annotations
 
-import math
 from typing import ClassVar
 
 import numpy as np
 
 from gym_soarm import constants
+from gym_soarm.sim.arrays import Array, SimArrays
+from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
-from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks.base import (
     Evaluation,
     RewardWeights,
@@ -64,32 +64,32 @@ class PickAndPlaceTask(CubeGridTask):
     state_fields: ClassVar = (*CUBE_STATE_FIELDS, fixture_position_field("goal", GOAL.name))
     goal_pairs: ClassVar = (("cube_pos", "goal_pos"),)
 
-    def _goal_distance(self, physics: SoArmPhysics) -> float:
+    def _goal_distance(self, sim: SimArrays) -> Array:
         """Horizontal distance (m) from the cube's centre to the pad's centre."""
-        cx, cy, _ = physics.object_position(self.cube).tolist()
-        gx, gy, _ = physics.fixture_position(GOAL.name).tolist()
-        return math.hypot(cx - gx, cy - gy)
+        offset = sim.object_position(self.cube)[:, :2] - sim.fixture_position(GOAL.name)[:, :2]
+        return batch_norm(offset)
 
-    def _on_goal(self, physics: SoArmPhysics, goal_distance: float) -> bool:
-        if goal_distance > GOAL_RADIUS_M:
-            return False
-        return abs(physics.object_height(self.cube) - GOAL_TOP_Z_M) <= PLACE_HEIGHT_TOL_M
+    def _on_goal(self, sim: SimArrays, goal_distance: Array) -> Array:
+        height = sim.object_height(self.cube)
+        return (goal_distance <= GOAL_RADIUS_M) & (
+            sim.xp.abs(height - GOAL_TOP_Z_M) <= PLACE_HEIGHT_TOL_M
+        )
 
-    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
-        goal_distance = self._goal_distance(physics)
-        on_goal = self._on_goal(physics, goal_distance)
+    def evaluate(self, sim: SimArrays) -> Evaluation:
+        goal_distance = self._goal_distance(sim)
+        on_goal = self._on_goal(sim, goal_distance)
         return {
             "success": (
                 on_goal
-                and not physics.touched_by_jaws(self.cube)
-                and physics.object_speed(self.cube) < RESTING_SPEED_M_S
+                & ~sim.touched_by_jaws(self.cube)
+                & (sim.object_speed(self.cube) < RESTING_SPEED_M_S)
             ),
             "on_goal": on_goal,
             "goal_distance_m": goal_distance,
-            **pick_progress(physics, self.cube),
+            **pick_progress(sim, self.cube),
         }
 
-    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
         goal_distance = evaluation["goal_distance_m"]
         return pick_and_place_terms(
             on_target=evaluation["on_goal"],

@@ -27,12 +27,15 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Mapping
+from types import MappingProxyType
 from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 
 from gym_soarm import constants
+from gym_soarm.sim.arrays import Array, SimArrays
+from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.kinematics import downward_rotation
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
@@ -107,9 +110,10 @@ LIFT_DEAD_BAND_M = 0.002
 _COS_MAX_TILT = math.cos(math.radians(MAX_TILT_DEG))
 
 
-def tilt_cosine(quaternion: np.ndarray) -> float:
-    """Cosine of the angle between a body's z axis and the world's, from its (w, x, y, z)."""
-    _, x, y, _ = quaternion.tolist()
+def tilt_cosine(quaternion: Array) -> Array:
+    """Cosine of the angle between a body's z axis and the world's, from its (w, x, y, z)
+    quaternion (the last axis: ``(4,)`` or ``(n, 4)``)."""
+    x, y = quaternion[..., 1], quaternion[..., 2]
     return 1.0 - 2.0 * (x * x + y * y)
 
 
@@ -147,11 +151,9 @@ class PickAndPlaceCylinderTask(Task):
         fixture_position_field("pad", PAD.name),
     )
     goal_pairs: ClassVar = (("cylinder_pos", "pad_pos"),)
+    episode_shapes: ClassVar = MappingProxyType({"start_xy": (2,)})
+    """Where the cylinder started (x, y; m), for the info."""
     cylinder = CYLINDER.name
-
-    def __init__(self, spec: TaskSpec) -> None:
-        super().__init__(spec)
-        self.start_xy: tuple[float, float] = CYLINDER.position_m
 
     def initialize_episode(
         self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
@@ -163,52 +165,48 @@ class PickAndPlaceCylinderTask(Task):
             np.array([x, y, constants.TABLE_TOP_Z_M + CYLINDER_HALF_HEIGHT_M]),
             placement.yaw_quaternion(0.0),
         )
-        self.start_xy = (x, y)
+        self.episode["start_xy"][0] = (x, y)
 
-    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
+    def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Any]:
+        xp = sim.xp
+        cosine = tilt_cosine(sim.object_quaternion(self.cylinder))
+        tilt = xp.acos(xp.minimum(xp.maximum(cosine, -1.0), 1.0)) * (180.0 / math.pi)
         return {
-            "cylinder_start_xy": [float(v) for v in self.start_xy],
-            "cylinder_pos": physics.object_position(self.cylinder),
-            "cylinder_tilt_deg": self._tilt_deg(physics),
-            "target_pos": physics.fixture_position(PAD.name),
+            "cylinder_start_xy": sim.episode["start_xy"],
+            "cylinder_pos": sim.object_position(self.cylinder),
+            "cylinder_tilt_deg": tilt,
+            "target_pos": sim.fixture_position(PAD.name),
         }
 
     # --- pieces -------------------------------------------------------------------------
-    def _tilt_deg(self, physics: SoArmPhysics) -> float:
-        cosine = tilt_cosine(physics.object_quaternion(self.cylinder))
-        return math.degrees(math.acos(min(max(cosine, -1.0), 1.0)))
-
-    def _pad_distance(self, physics: SoArmPhysics) -> float:
+    def _pad_distance(self, sim: SimArrays) -> Array:
         """Horizontal distance (m) from the cylinder's centre to the pad's centre."""
-        cx, cy, _ = physics.object_position(self.cylinder).tolist()
-        px, py, _ = physics.fixture_position(PAD.name).tolist()
-        return math.hypot(cx - px, cy - py)
+        offset = sim.object_position(self.cylinder)[:, :2] - sim.fixture_position(PAD.name)[:, :2]
+        return batch_norm(offset)
 
-    def _standing_on_pad(self, physics: SoArmPhysics, pad_distance: float) -> bool:
+    def _standing_on_pad(self, sim: SimArrays, pad_distance: Array) -> Array:
         """Upright, centred within the pad's radius and with its bottom on the table."""
-        if pad_distance > PAD_RADIUS_M:
-            return False
-        position, quaternion = physics.object_pose(self.cylinder)
-        if tilt_cosine(quaternion) < _COS_MAX_TILT:
-            return False
-        bottom = position[2] - CYLINDER_HALF_HEIGHT_M - constants.TABLE_TOP_Z_M
-        return abs(bottom) <= PLACE_HEIGHT_TOL_M
+        position = sim.object_position(self.cylinder)
+        upright = tilt_cosine(sim.object_quaternion(self.cylinder)) >= _COS_MAX_TILT
+        bottom = position[:, 2] - CYLINDER_HALF_HEIGHT_M - constants.TABLE_TOP_Z_M
+        on_table = sim.xp.abs(bottom) <= PLACE_HEIGHT_TOL_M
+        return (pad_distance <= PAD_RADIUS_M) & upright & on_table
 
-    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
-        pad_distance = self._pad_distance(physics)
-        standing = self._standing_on_pad(physics, pad_distance)
+    def evaluate(self, sim: SimArrays) -> Evaluation:
+        pad_distance = self._pad_distance(sim)
+        standing = self._standing_on_pad(sim, pad_distance)
         return {
             "success": (
                 standing
-                and not physics.touched_by_jaws(self.cylinder)
-                and physics.object_speed(self.cylinder) < RESTING_SPEED_M_S
+                & ~sim.touched_by_jaws(self.cylinder)
+                & (sim.object_speed(self.cylinder) < RESTING_SPEED_M_S)
             ),
             "standing_on_pad": standing,
             "pad_distance_m": pad_distance,
-            **pick_progress(physics, self.cylinder),
+            **pick_progress(sim, self.cylinder),
         }
 
-    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
         pad_distance = evaluation["pad_distance_m"]
         return pick_and_place_terms(
             on_target=evaluation["standing_on_pad"],

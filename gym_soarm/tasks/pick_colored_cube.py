@@ -21,10 +21,13 @@ cube's position again (``target_pos``) and the gripper's position. ``info`` adds
 from __future__ import annotations
 
 from collections.abc import Mapping
+from types import MappingProxyType
 from typing import Any, ClassVar
 
 import numpy as np
 
+from gym_soarm.sim.arrays import Array, SimArrays
+from gym_soarm.sim.arrays import namespace as sim_namespace
 from gym_soarm.sim.objects import Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
@@ -75,6 +78,17 @@ def instruction_for(colour: str) -> str:
     return f"Pick up the {colour} cube."
 
 
+def _of_target(sim: SimArrays, values: list[Array]) -> Array:
+    """Each environment's value of its target cube, out of one value per cube (in
+    :data:`CUBE_NAMES` order), ``(n,)`` or ``(n, k)`` each."""
+    choice = sim.episode["target"]
+    picked = values[-1]
+    for k in range(len(values) - 2, -1, -1):
+        chosen = choice == k
+        picked = sim.xp.where(chosen[:, None] if picked.ndim == 2 else chosen, values[k], picked)
+    return picked
+
+
 class PickColoredCubeTask(Task):
     """Pick up the cube of the episode's colour, leaving the other two on the table."""
 
@@ -82,10 +96,15 @@ class PickColoredCubeTask(Task):
     state_fields: ClassVar = (
         *(field for name in CUBE_NAMES for field in object_pose_fields(name)),
         position_field(
-            "target_pos", "target", lambda physics, task: physics.object_position(task.target)
+            "target_pos",
+            "target",
+            lambda sim, task: _of_target(sim, [sim.object_position(n) for n in CUBE_NAMES]),
         ),
         GRIPPER_POSITION_FIELD,
     )
+
+    episode_shapes: ClassVar = MappingProxyType({"target": ()})
+    """The index of the episode's colour in :data:`COLOURS`."""
 
     def __init__(self, spec: TaskSpec) -> None:
         super().__init__(spec)
@@ -106,6 +125,7 @@ class PickColoredCubeTask(Task):
     ) -> None:
         choice = int(rng.integers(len(COLOURS)))
         self.colour = COLOURS[choice]
+        self.episode["target"][0] = choice
         self.instruction = self.spec.instructions[choice]
         physics.reset_to_home()
         radii = [cube.footprint_radius_m for cube in CUBES]
@@ -114,37 +134,46 @@ class PickColoredCubeTask(Task):
         )
         placement.set_down(physics, rng, CUBES, positions, YAW_RANGE_DEG)
 
-    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
-        grasped = physics.grasped(self.target)
-        height = physics.object_height(self.target)
-        others_on_table = all(
-            physics.object_height(name) < ON_TABLE_HEIGHT_M for name in self.others
-        )
+    def evaluate(self, sim: SimArrays) -> Evaluation:
+        xp = sim.xp
+        choice = sim.episode["target"]
+        grasped = [sim.grasped(name) for name in CUBE_NAMES]
+        heights = [sim.object_height(name) for name in CUBE_NAMES]
+        reach = [reach_distance(sim, name) for name in CUBE_NAMES]
+        others_on_table = xp.ones_like(grasped[0])
+        other_grasped = xp.zeros_like(grasped[0])
+        for k in range(len(CUBE_NAMES)):
+            other = choice != k
+            others_on_table = others_on_table & (~other | (heights[k] < ON_TABLE_HEIGHT_M))
+            other_grasped = other_grasped | (other & grasped[k])
+        target_grasped = _of_target(sim, grasped)
+        height = _of_target(sim, heights)
         return {
-            "success": grasped and height >= LIFT_HEIGHT_M and others_on_table,
-            "grasped": grasped,
-            "other_grasped": any(physics.grasped(name) for name in self.others),
+            "success": target_grasped & (height >= LIFT_HEIGHT_M) & others_on_table,
+            "grasped": target_grasped,
+            "other_grasped": other_grasped,
             "others_on_table": others_on_table,
             "height_m": height,
-            "reach_distance_m": reach_distance(physics, self.target),
+            "reach_distance_m": _of_target(sim, reach),
         }
 
-    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
-        if not evaluation["grasped"] and evaluation["other_grasped"]:
-            # A held wrong cube earns nothing.
-            return dict.fromkeys(self.weights.terms, 0.0)
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
+        xp = sim_namespace(evaluation["height_m"])
         # Another cube coming up with the target: lifting it earns nothing.
-        lift = lift_progress(evaluation["height_m"]) if evaluation["others_on_table"] else 0.0
-        return pick_terms(
+        lift = xp.where(evaluation["others_on_table"], lift_progress(evaluation["height_m"]), 0.0)
+        terms = pick_terms(
             grasped=evaluation["grasped"],
             reach_distance_m=evaluation["reach_distance_m"],
             lift=lift,
         )
+        # A held wrong cube earns nothing.
+        wrong = ~evaluation["grasped"] & evaluation["other_grasped"]
+        return {name: xp.where(wrong, 0.0, value) for name, value in terms.items()}
 
-    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
+    def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Any]:
         return {
-            "target_colour": self.colour,
-            "target_pos": physics.object_position(self.target),
+            "target_colour": [COLOURS[int(c)] for c in np.asarray(sim.episode["target"])],
+            "target_pos": _of_target(sim, [sim.object_position(n) for n in CUBE_NAMES]),
         }
 
 

@@ -26,6 +26,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gym_soarm import constants
+from gym_soarm.sim.arrays import Array, SimArrays
+from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.kinematics import downward_rotation
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
 from gym_soarm.sim.physics import SoArmPhysics
@@ -143,43 +145,44 @@ class PlaceInBinTask(Task):
         )
 
     # --- geometry of the bin -----------------------------------------------------------
-    def _bin_offset(self, physics: SoArmPhysics) -> tuple[float, float]:
-        """(x, y) of the cube's centre relative to the bin's centre (m)."""
-        cx, cy, _ = physics.object_position(self.cube).tolist()
-        bx, by, _ = physics.fixture_position(BIN.name).tolist()
-        return cx - bx, cy - by
+    def _bin_offset(self, sim: SimArrays) -> Array:
+        """``(n, 2)``: (x, y) of the cube's centre relative to the bin's centre (m)."""
+        return sim.object_position(self.cube)[:, :2] - sim.fixture_position(BIN.name)[:, :2]
 
-    def _in_bin(self, physics: SoArmPhysics, dx: float, dy: float) -> bool:
+    def _in_bin(self, sim: SimArrays, offset: Array) -> Array:
         """The whole cube lies inside the bin's inner footprint, its top below the rim."""
-        w, x, y, z = physics.object_quaternion(self.cube).tolist()
+        xp = sim.xp
+        q = sim.object_quaternion(self.cube)
+        w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
         # Rows of the cube's rotation matrix: its half extents along world x, y and z.
         r0 = (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y))
         r1 = (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x))
         r2 = (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
-        reach_x = CUBE_HALF_M * sum(abs(v) for v in r0)
-        reach_y = CUBE_HALF_M * sum(abs(v) for v in r1)
-        reach_z = CUBE_HALF_M * sum(abs(v) for v in r2)
-        if abs(dx) + reach_x > BIN_INNER_HALF_M or abs(dy) + reach_y > BIN_INNER_HALF_M:
-            return False
-        top = physics.object_position(self.cube)[2] + reach_z - constants.TABLE_TOP_Z_M
-        return top < BIN_RIM_Z_M
+        reach_x = CUBE_HALF_M * (xp.abs(r0[0]) + xp.abs(r0[1]) + xp.abs(r0[2]))
+        reach_y = CUBE_HALF_M * (xp.abs(r1[0]) + xp.abs(r1[1]) + xp.abs(r1[2]))
+        reach_z = CUBE_HALF_M * (xp.abs(r2[0]) + xp.abs(r2[1]) + xp.abs(r2[2]))
+        inside = (xp.abs(offset[:, 0]) + reach_x <= BIN_INNER_HALF_M) & (
+            xp.abs(offset[:, 1]) + reach_y <= BIN_INNER_HALF_M
+        )
+        top = sim.object_position(self.cube)[:, 2] + reach_z - constants.TABLE_TOP_Z_M
+        return inside & (top < BIN_RIM_Z_M)
 
-    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
-        dx, dy = self._bin_offset(physics)
-        in_bin = self._in_bin(physics, dx, dy)
+    def evaluate(self, sim: SimArrays) -> Evaluation:
+        offset = self._bin_offset(sim)
+        in_bin = self._in_bin(sim, offset)
         return {
             "success": (
                 in_bin
-                and physics.touching(self.cube, BIN.name)
-                and not physics.touched_by_jaws(self.cube)
-                and physics.object_speed(self.cube) < RESTING_SPEED_M_S
+                & sim.touching(self.cube, BIN.name)
+                & ~sim.touched_by_jaws(self.cube)
+                & (sim.object_speed(self.cube) < RESTING_SPEED_M_S)
             ),
             "in_bin": in_bin,
-            "bin_distance_m": math.hypot(dx, dy),
-            **pick_progress(physics, self.cube),
+            "bin_distance_m": batch_norm(offset),
+            **pick_progress(sim, self.cube),
         }
 
-    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
         offset = evaluation["bin_distance_m"]
         return pick_and_place_terms(
             on_target=evaluation["in_bin"],
@@ -190,10 +193,10 @@ class PlaceInBinTask(Task):
             near_target=tolerance(offset, OVER_BIN_RADIUS_M, PLACE_MARGIN_M),
         )
 
-    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
+    def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Any]:
         return {
-            "cube_pos": physics.object_position(self.cube).tolist(),
-            "target_pos": physics.fixture_position(BIN.name).tolist(),
+            "cube_pos": sim.object_position(self.cube),
+            "target_pos": sim.fixture_position(BIN.name),
         }
 
 

@@ -25,12 +25,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from types import MappingProxyType
 from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 
 from gym_soarm import constants
+from gym_soarm.sim.arrays import Array, SimArrays
+from gym_soarm.sim.arrays import namespace as sim_namespace
+from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.kinematics import downward_rotation
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
 from gym_soarm.sim.physics import SoArmPhysics
@@ -123,13 +127,12 @@ class PushTask(Task):
     weights = RewardWeights({"reach": 0.3, "push": 0.7})
     state_fields: ClassVar = (*CUBE_STATE_FIELDS, fixture_position_field("target", TARGET.name))
     goal_pairs: ClassVar = (("cube_pos", "target_pos"),)
+    episode_shapes: ClassVar = MappingProxyType(
+        {"start_distance": (), "direction": (2,), "max_height": ()}
+    )
+    """The cube's start distance to the square's centre (m), the push's unit direction,
+    and the highest the cube has been this episode (m)."""
     cube = CUBE.name
-
-    def __init__(self, spec: TaskSpec) -> None:
-        super().__init__(spec)
-        self._start_distance = 1.0
-        self._direction = np.array([0.0, 1.0])
-        self._max_height = 0.0
 
     def initialize_episode(
         self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
@@ -144,63 +147,68 @@ class PushTask(Task):
         )
         physics.set_fixture_position(TARGET.name, np.array([tx, ty, constants.TABLE_TOP_Z_M]))
         offset = np.array([tx - cx, ty - cy])
-        self._start_distance = norm(offset)
-        self._direction = offset / self._start_distance
-        self._max_height = 0.0
+        distance = norm(offset)
+        self.episode["start_distance"][0] = distance
+        self.episode["direction"][0] = offset / distance
+        self.episode["max_height"][0] = 0.0
 
     # --- episode bookkeeping --------------------------------------------------------
-    def _lifted(self, physics: SoArmPhysics) -> bool:
+    def _lifted(self, sim: SimArrays) -> Array:
         """Whether the cube has been lifted above the limit this episode (updates the record)."""
-        self._max_height = max(self._max_height, physics.object_height(self.cube))
-        return self._max_height > LIFT_LIMIT_M
+        highest = sim.episode["max_height"]
+        highest[...] = sim.xp.maximum(highest, sim.object_height(self.cube))
+        return highest > LIFT_LIMIT_M
 
-    def _pusher_distance(self, physics: SoArmPhysics) -> float:
+    def _pusher_distance(self, sim: SimArrays) -> Array:
         """Distance (m) from the jaws to the stretch of the push line just behind the cube."""
-        cube = physics.object_position(self.cube)
-        jaws = physics.jaw_pads_center()
+        xp = sim.xp
+        cube = sim.object_position(self.cube)
+        jaws = sim.jaw_pads_center()
+        direction = sim.episode["direction"]
         # How far behind the cube's centre the jaws are, along the push, kept to the stretch.
-        behind = float((cube[:2] - jaws[:2]) @ self._direction)
-        behind = min(max(behind, PUSHER_BEHIND_M[0]), PUSHER_BEHIND_M[1])
-        spot = cube
-        spot[:2] -= behind * self._direction
-        return norm(jaws - spot)
+        behind = xp.sum((cube[:, :2] - jaws[:, :2]) * direction, axis=1)
+        behind = xp.minimum(xp.maximum(behind, PUSHER_BEHIND_M[0]), PUSHER_BEHIND_M[1])
+        spot_xy = cube[:, :2] - behind[:, None] * direction
+        gap = jaws - xp.concat([spot_xy, cube[:, 2:]], axis=1)
+        return batch_norm(gap)
 
-    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
-        lifted = self._lifted(physics)
+    def evaluate(self, sim: SimArrays) -> Evaluation:
+        xp = sim.xp
+        lifted = self._lifted(sim)
         # Horizontal offset (m) from the cube's centre to the square's centre.
-        offset = physics.fixture_position(TARGET.name)[:2] - physics.object_position(self.cube)[:2]
-        over_target = (
-            abs(float(offset[0])) <= TARGET_HALF_M and abs(float(offset[1])) <= TARGET_HALF_M
-        )
+        offset = sim.fixture_position(TARGET.name)[:, :2] - sim.object_position(self.cube)[:, :2]
+        over_target = xp.all(xp.abs(offset) <= TARGET_HALF_M, axis=1)
         return {
             "success": (
-                not lifted
-                and over_target
-                and physics.object_speed(self.cube) < RESTING_SPEED_M_S
-                and not physics.touched_by_jaws(self.cube)
+                ~lifted
+                & over_target
+                & (sim.object_speed(self.cube) < RESTING_SPEED_M_S)
+                & ~sim.touched_by_jaws(self.cube)
             ),
             "lifted": lifted,
             "over_target": over_target,
-            "target_distance_m": norm(offset),
-            "pusher_distance_m": self._pusher_distance(physics),
+            "target_distance_m": batch_norm(offset),
+            "pusher_distance_m": self._pusher_distance(sim),
+            "start_distance_m": sim.episode["start_distance"],
         }
 
-    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
         reach = tolerance(evaluation["pusher_distance_m"], REACH_BOUND_M, REACH_MARGIN_M)
-        if evaluation["lifted"]:
-            return {"reach": reach, "push": 0.0}
-        if evaluation["over_target"]:
-            return {"reach": 1.0, "push": PLACED_CREDIT}
+        xp = sim_namespace(reach)
         # Progress from the start towards the square's edge (reached when over it).
-        to_go = max(evaluation["target_distance_m"] - TARGET_HALF_M, 0.0)
-        progress = 1.0 - to_go / (self._start_distance - TARGET_HALF_M)
-        push = PLACED_CREDIT * min(max(progress, 0.0), 1.0)
-        return {"reach": reach, "push": push}
-
-    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
+        to_go = xp.maximum(evaluation["target_distance_m"] - TARGET_HALF_M, 0.0)
+        progress = 1.0 - to_go / (evaluation["start_distance_m"] - TARGET_HALF_M)
+        push = PLACED_CREDIT * xp.minimum(xp.maximum(progress, 0.0), 1.0)
+        over, lifted = evaluation["over_target"], evaluation["lifted"]
         return {
-            "target_pos": [float(v) for v in physics.fixture_position(TARGET.name)],
-            "cube_pos": [float(v) for v in physics.object_position(self.cube)],
+            "reach": xp.where(~lifted & over, 1.0, reach),
+            "push": xp.where(lifted, 0.0, xp.where(over, PLACED_CREDIT, push)),
+        }
+
+    def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Any]:
+        return {
+            "target_pos": sim.fixture_position(TARGET.name),
+            "cube_pos": sim.object_position(self.cube),
             "cube_lifted": evaluation["lifted"],
         }
 

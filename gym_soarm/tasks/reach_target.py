@@ -24,6 +24,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from gym_soarm.sim.arrays import Array, SimArrays
+from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks.base import (
@@ -34,7 +36,7 @@ from gym_soarm.tasks.base import (
     TaskSpec,
     fixture_position_field,
 )
-from gym_soarm.tasks.rewards import REACH_MARGIN_M, norm, tolerance
+from gym_soarm.tasks.rewards import REACH_MARGIN_M, tolerance
 from gym_soarm.tasks.scripted import NoGraspExpert, Phase
 from gym_soarm.tasks.state_expert import Move, StateExpert
 
@@ -72,18 +74,18 @@ class ReachTask(Task):
         z0, z1 = TARGET_HEIGHT_M
         physics.set_fixture_position(TARGET.name, rng.uniform((x0, y0, z0), (x1, y1, z1)))
 
-    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
-        distance = norm(physics.grasp_center() - physics.fixture_position(TARGET.name))
+    def evaluate(self, sim: SimArrays) -> Evaluation:
+        distance = batch_norm(sim.grasp_center() - sim.fixture_position(TARGET.name))
         return {"success": distance <= SUCCESS_DISTANCE_M, "target_distance_m": distance}
 
-    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
         # 1 exactly when successful: the tolerance is 1 within the success distance.
         distance = evaluation["target_distance_m"]
         return {"reach": tolerance(distance, SUCCESS_DISTANCE_M, REACH_MARGIN_M)}
 
-    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
+    def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Any]:
         return {
-            "target_pos": [float(v) for v in physics.fixture_position(TARGET.name)],
+            "target_pos": sim.fixture_position(TARGET.name),
             "target_distance": evaluation["target_distance_m"],
         }
 

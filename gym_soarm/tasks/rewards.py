@@ -6,7 +6,9 @@ here once: :func:`pick_terms` for the tasks that stop at the lift, and
 :func:`pick_and_place_terms` for those that put the object somewhere. A later stage
 counts every earlier one as complete, so the reward never falls as the task progresses.
 Tasks compute the distances and flags once a step (:meth:`Task.evaluate
-<gym_soarm.tasks.base.Task.evaluate>`) and hand them to these helpers.
+<gym_soarm.tasks.base.Task.evaluate>`) and hand them to these helpers. Everything here
+but :func:`norm` works on arrays over a batch of environments (NumPy, or any array-API
+library such as torch): one value per environment, ``(n,)``.
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ import math
 
 import numpy as np
 
-from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.sim.arrays import Array, SimArrays, namespace
+from gym_soarm.sim.arrays import norm as batch_norm
 
 REACH_BOUND_M = 0.01
 """The reach term is 1 with the jaws' centre this close to the object."""
@@ -34,56 +37,44 @@ PLACED_CREDIT = 0.9
 moving: letting go, at rest, earns the rest (the success)."""
 
 
-def norm(vector: np.ndarray) -> float:
-    """Euclidean norm of a 1-D float array: what np.linalg.norm computes, with less overhead."""
-    return math.sqrt(vector.dot(vector))
+LN10 = math.log(10.0)
 
 
-def tolerance(distance: float, bound: float, margin: float) -> float:
+def tolerance(distance: Array, bound: float, margin: float) -> Array:
     """1 inside ``bound``, falling smoothly to 0.1 at ``bound + margin``, in [0, 1]."""
-    if distance <= bound:
-        return 1.0
-    x = (distance - bound) / margin
-    return float(math.exp(-math.log(10.0) * x * x))
+    xp = namespace(distance)
+    x = xp.maximum(distance - bound, 0.0) / margin
+    return xp.exp(-LN10 * x * x)
 
 
-def reach_distance(physics: SoArmPhysics, name: str) -> float:
-    """Distance (m) from the jaws' centre (``grasp_center``) to object ``name``'s centre."""
-    return norm(physics.grasp_center() - physics.object_position(name))
+def reach_distance(sim: SimArrays, name: str) -> Array:
+    """``(n,)``: from the jaws' centre (``grasp_center``) to object ``name``'s centre (m)."""
+    return batch_norm(sim.grasp_center() - sim.object_position(name))
 
 
-def pick_progress(physics: SoArmPhysics, name: str) -> dict[str, float | bool]:
+def pick_progress(sim: SimArrays, name: str) -> dict[str, Array]:
     """What the staged reward reads of object ``name``, for a task's evaluation:
     ``grasped``, ``height_m`` (its bottom above the table) and ``reach_distance_m``."""
     return {
-        "grasped": physics.grasped(name),
-        "height_m": physics.object_height(name),
-        "reach_distance_m": reach_distance(physics, name),
+        "grasped": sim.grasped(name),
+        "height_m": sim.object_height(name),
+        "reach_distance_m": reach_distance(sim, name),
     }
 
 
-def reach_closeness(distance_m: float) -> float:
+def reach_closeness(distance_m: Array) -> Array:
     """The reach term of a jaws-to-object distance: 1 within 1 cm, falling smoothly beyond."""
     return tolerance(distance_m, REACH_BOUND_M, REACH_MARGIN_M)
 
 
-def reach_term(physics: SoArmPhysics, name: str) -> float:
-    """1 with the jaws' centre within 1 cm of object ``name``, falling smoothly beyond."""
-    return reach_closeness(reach_distance(physics, name))
-
-
-def lift_progress(height_m: float, top_m: float = LIFT_HEIGHT_M, dead_band_m: float = 0.0) -> float:
+def lift_progress(height_m: Array, top_m: float = LIFT_HEIGHT_M, dead_band_m: float = 0.0) -> Array:
     """How far an object's bottom at ``height_m`` is raised from ``dead_band_m`` towards
     ``top_m``, in [0, 1]."""
-    return min(max((height_m - dead_band_m) / (top_m - dead_band_m), 0.0), 1.0)
+    xp = namespace(height_m)
+    return xp.minimum(xp.maximum((height_m - dead_band_m) / (top_m - dead_band_m), 0.0), 1.0)
 
 
-def lift_term(physics: SoArmPhysics, name: str, height_m: float = LIFT_HEIGHT_M) -> float:
-    """How far object ``name``'s bottom is raised towards ``height_m``, in [0, 1]."""
-    return lift_progress(physics.object_height(name), height_m)
-
-
-def pick_terms(*, grasped: bool, reach_distance_m: float, lift: float) -> dict[str, float]:
+def pick_terms(*, grasped: Array, reach_distance_m: Array, lift: Array) -> dict[str, Array]:
     """The ``reach``, ``grasp`` and ``lift`` stages of picking an object up.
 
     Args:
@@ -91,20 +82,24 @@ def pick_terms(*, grasped: bool, reach_distance_m: float, lift: float) -> dict[s
         reach_distance_m: from the jaws' centre to the object (scored while not held).
         lift: the lift progress of the held object, in [0, 1].
     """
-    if not grasped:
-        return {"reach": reach_closeness(reach_distance_m), "grasp": 0.0, "lift": 0.0}
-    return {"reach": 1.0, "grasp": 1.0, "lift": lift}
+    xp = namespace(reach_distance_m)
+    held = xp.astype(grasped, reach_distance_m.dtype)
+    return {
+        "reach": xp.where(grasped, 1.0, reach_closeness(reach_distance_m)),
+        "grasp": held,
+        "lift": held * lift,
+    }
 
 
 def pick_and_place_terms(
     *,
-    on_target: bool,
-    grasped: bool,
-    reach_distance_m: float,
-    lift: float,
-    over_target: bool,
-    near_target: float,
-) -> dict[str, float]:
+    on_target: Array,
+    grasped: Array,
+    reach_distance_m: Array,
+    lift: Array,
+    over_target: Array,
+    near_target: Array,
+) -> dict[str, Array]:
     """The ``reach``, ``grasp``, ``lift`` and ``place`` stages of an unfinished placement.
 
     An object on its target (held or moving) lacks only the release: every stage is
@@ -120,16 +115,19 @@ def pick_and_place_terms(
         over_target: the held object is (horizontally) over its target.
         near_target: closeness of the object to its target, in [0, 1].
     """
-    if on_target:
-        return {"reach": 1.0, "grasp": 1.0, "lift": 1.0, "place": PLACED_CREDIT}
-    if not grasped:
-        reach = reach_closeness(reach_distance_m)
-        return {"reach": reach, "grasp": 0.0, "lift": 0.0, "place": 0.0}
-    if over_target:
-        lift = 1.0
+    xp = namespace(reach_distance_m)
+    dtype = reach_distance_m.dtype
+    held = grasped | on_target
+    held_lift = xp.where(over_target, 1.0, lift)
+    carry = PLACE_CARRY_CREDIT * near_target * held_lift
     return {
-        "reach": 1.0,
-        "grasp": 1.0,
-        "lift": lift,
-        "place": PLACE_CARRY_CREDIT * near_target * lift,
+        "reach": xp.where(held, 1.0, reach_closeness(reach_distance_m)),
+        "grasp": xp.astype(held, dtype),
+        "lift": xp.where(on_target, 1.0, xp.where(grasped, held_lift, 0.0)),
+        "place": xp.where(on_target, PLACED_CREDIT, xp.where(grasped, carry, 0.0)),
     }
+
+
+def norm(vector: np.ndarray) -> float:
+    """Euclidean norm of one 1-D float array, as a float (for experts and placement)."""
+    return math.sqrt(vector.dot(vector))

@@ -31,7 +31,6 @@ rising straight up, open, after each release.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
@@ -39,6 +38,9 @@ import gymnasium as gym
 import numpy as np
 
 from gym_soarm import constants
+from gym_soarm.sim.arrays import Array, SimArrays
+from gym_soarm.sim.arrays import namespace as sim_namespace
+from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
@@ -167,99 +169,87 @@ class SortCubesTask(Task):
         placement.set_down(physics, rng, CUBES, positions, YAW_RANGE_DEG)
 
     # --- per cube ----------------------------------------------------------------------
-    def pad_distance(self, physics: SoArmPhysics, colour: str) -> float:
-        """Horizontal distance (m) from the cube's centre to its own pad's centre."""
-        cx, cy, _ = physics.object_position(cube_name(colour)).tolist()
-        px, py, _ = physics.fixture_position(pad_name(colour)).tolist()
-        return math.hypot(cx - px, cy - py)
-
-    def on_pad(self, physics: SoArmPhysics, colour: str, distance: float | None = None) -> bool:
-        """Whether the cube of ``colour`` lies on its own pad (held or not)."""
-        if distance is None:
-            distance = self.pad_distance(physics, colour)
-        if distance > PAD_RADIUS_M:
-            return False
-        return abs(physics.object_height(cube_name(colour)) - PAD_TOP_Z_M) <= PLACE_HEIGHT_TOL_M
-
-    def is_sorted(self, physics: SoArmPhysics, colour: str) -> bool:
-        """Whether the cube of ``colour`` lies on its own pad, out of the jaws."""
-        return self.on_pad(physics, colour) and not physics.touched_by_jaws(cube_name(colour))
-
-    def unsorted(self, physics: SoArmPhysics) -> tuple[str, ...]:
-        """The colours whose cube is not yet sorted, in sorting order."""
-        return tuple(colour for colour in COLOURS if not self.is_sorted(physics, colour))
-
-    def _reach_distance(self, physics: SoArmPhysics, cube: str) -> float:
-        """How far the jaws are from ``cube``: horizontally, and in height once more than
-        :data:`REACH_HEADROOM_M` above it (so rising off a placed cube loses nothing)."""
-        dx, dy, dz = (physics.grasp_center() - physics.object_position(cube)).tolist()
-        return math.hypot(dx, dy, max(abs(dz) - REACH_HEADROOM_M, 0.0))
-
-    def _evaluate_cube(self, physics: SoArmPhysics, colour: str) -> dict[str, Any]:
-        """One cube's flags and distances (see :meth:`evaluate`)."""
+    def _evaluate_cube(self, sim: SimArrays, colour: str) -> dict[str, Array]:
+        """One cube's flags and distances, ``(n,)`` each (see :meth:`evaluate`)."""
+        xp = sim.xp
         cube = cube_name(colour)
-        distance = self.pad_distance(physics, colour)
-        on_pad = self.on_pad(physics, colour, distance)
-        is_sorted = on_pad and not physics.touched_by_jaws(cube)
+        offset = sim.object_position(cube)[:, :2] - sim.fixture_position(pad_name(colour))[:, :2]
+        distance = batch_norm(offset)
+        height = sim.object_height(cube)
+        on_pad = (distance <= PAD_RADIUS_M) & (xp.abs(height - PAD_TOP_Z_M) <= PLACE_HEIGHT_TOL_M)
+        # How far the jaws are from the cube: horizontally, and in height once more than
+        # REACH_HEADROOM_M above it (so rising off a placed cube loses nothing).
+        gap = sim.grasp_center() - sim.object_position(cube)
+        rise = xp.maximum(xp.abs(gap[:, 2]) - REACH_HEADROOM_M, 0.0)
         return {
-            "sorted": is_sorted,
-            "at_rest": physics.object_speed(cube) < RESTING_SPEED_M_S,
+            "sorted": on_pad & ~sim.touched_by_jaws(cube),
+            "at_rest": sim.object_speed(cube) < RESTING_SPEED_M_S,
             "on_pad": on_pad,
             "pad_distance_m": distance,
-            "grasped": physics.grasped(cube),
-            "height_m": physics.object_height(cube),
-            "reach_distance_m": self._reach_distance(physics, cube),
+            "grasped": sim.grasped(cube),
+            "height_m": height,
+            "reach_distance_m": xp.sqrt(gap[:, 0] ** 2 + gap[:, 1] ** 2 + rise * rise),
         }
 
     @staticmethod
-    def _stages(cube: dict[str, Any]) -> dict[str, float]:
-        """The pick-and-place stages of one unsorted cube (its :meth:`_evaluate_cube`)."""
-        distance = cube["pad_distance_m"]
+    def _stages(evaluation: Evaluation, colour: str) -> dict[str, Array]:
+        """The pick-and-place stages of one cube (its part of :meth:`evaluate`)."""
+        distance = evaluation[f"{colour}_pad_distance_m"]
         return pick_and_place_terms(
-            on_target=cube["on_pad"],
-            grasped=cube["grasped"],
-            reach_distance_m=cube["reach_distance_m"],
-            lift=lift_progress(cube["height_m"]),
+            on_target=evaluation[f"{colour}_on_pad"],
+            grasped=evaluation[f"{colour}_grasped"],
+            reach_distance_m=evaluation[f"{colour}_reach_distance_m"],
+            lift=lift_progress(evaluation[f"{colour}_height_m"]),
             over_target=distance <= PAD_RADIUS_M,
             near_target=tolerance(distance, PAD_RADIUS_M / 2, PLACE_MARGIN_M),
         )
 
-    # --- success and reward ----------------------------------------------------------------
-    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
-        cubes = {colour: self._evaluate_cube(physics, colour) for colour in COLOURS}
-        return {
-            "success": all(cube["sorted"] and cube["at_rest"] for cube in cubes.values()),
-            "unsorted": tuple(colour for colour in COLOURS if not cubes[colour]["sorted"]),
-            "cubes": cubes,
-        }
+    def unsorted(self, physics: SoArmPhysics) -> tuple[str, ...]:
+        """The colours whose cube is not yet on its own pad out of the jaws, in sorting order."""
+        evaluation = self.evaluate(self.arrays(physics))
+        return tuple(c for c in COLOURS if not bool(evaluation[f"{c}_sorted"][0]))
 
-    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
-        unsorted = evaluation["unsorted"]
-        terms = {f"{colour}_sorted": float(colour not in unsorted) for colour in COLOURS}
-        done = len(COLOURS) - len(unsorted)
-        if unsorted:
-            # The cube furthest along is the one being worked on (the first on a tie).
-            progress = [self._stages(evaluation["cubes"][colour]) for colour in unsorted]
-            # Reaching alone does not count here, so the cube reached for is the first
-            # unsorted one until another is held or on its pad.
-            current = max(
-                progress,
-                key=lambda s: sum(_STAGE_WEIGHTS[k] * s[k] for k in ("grasp", "lift", "place")),
-            )
-        else:
-            current = dict.fromkeys(STAGES, 0.0)
+    # --- success and reward ----------------------------------------------------------------
+    def evaluate(self, sim: SimArrays) -> Evaluation:
+        """Per cube ``<colour>_sorted``, ``_at_rest``, ``_on_pad``, ``_pad_distance_m``,
+        ``_grasped``, ``_height_m`` and ``_reach_distance_m``; success when all are sorted
+        and at rest."""
+        evaluation: Evaluation = {}
+        success = None
+        for colour in COLOURS:
+            cube = self._evaluate_cube(sim, colour)
+            evaluation.update({f"{colour}_{key}": value for key, value in cube.items()})
+            done = cube["sorted"] & cube["at_rest"]
+            success = done if success is None else success & done
+        return {"success": success, **evaluation}
+
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
+        xp = sim_namespace(evaluation["success"])
+        sorted_flags = {c: evaluation[f"{c}_sorted"] for c in COLOURS}
+        dtype = evaluation[f"{COLOURS[0]}_height_m"].dtype
+        terms = {f"{c}_sorted": xp.astype(sorted_flags[c], dtype) for c in COLOURS}
+        done = sum(terms.values())
+        # The unsorted cube furthest along is the one being worked on (the first on a
+        # tie); reaching alone does not count here, so the cube reached for is the first
+        # unsorted one until another is held or on its pad. All sorted: no current cube.
+        current = {stage: xp.zeros_like(done) for stage in STAGES}
+        best = xp.full_like(done, -1.0)
+        for colour in COLOURS:
+            stages = self._stages(evaluation, colour)
+            score = sum(_STAGE_WEIGHTS[k] * stages[k] for k in ("grasp", "lift", "place"))
+            better = ~sorted_flags[colour] & (score > best)
+            current = {k: xp.where(better, stages[k], current[k]) for k in STAGES}
+            best = xp.where(better, score, best)
         for stage in STAGES:
             terms[stage] = (done + current[stage]) / len(COLOURS)
         return terms
 
-    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
-        unsorted = evaluation["unsorted"]
+    def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Any]:
+        xp = sim.xp
+        count = sum(xp.astype(evaluation[f"{c}_sorted"], xp.int64) for c in COLOURS)
         return {
-            "cubes_sorted": len(COLOURS) - len(unsorted),
-            **{
-                f"{colour}_cube_pos": physics.object_position(cube_name(colour))
-                for colour in COLOURS
-            },
+            "cubes_sorted": count,
+            **{f"{colour}_cube_pos": sim.object_position(cube_name(colour)) for colour in COLOURS},
         }
 
 

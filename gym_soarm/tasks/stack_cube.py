@@ -25,6 +25,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gym_soarm import constants
+from gym_soarm.sim.arrays import Array, SimArrays
+from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.objects import Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
@@ -123,44 +125,37 @@ class StackCubeTask(Task):
             )
 
     # --- geometry of the stack ---------------------------------------------------------
-    def stack_target(self, physics: SoArmPhysics) -> np.ndarray:
-        """Where the red cube's centre rests when stacked: on top of the blue cube."""
-        target = physics.object_position(self.bottom)
-        target[2] += CUBE_SIZE_M
-        return target
-
-    def _offset(self, physics: SoArmPhysics) -> float:
+    def _offset(self, sim: SimArrays) -> Array:
         """Horizontal distance (m) from the red cube's centre to the blue cube's centre."""
-        rx, ry, _ = physics.object_position(self.top).tolist()
-        bx, by, _ = physics.object_position(self.bottom).tolist()
-        return math.hypot(rx - bx, ry - by)
+        red, blue = sim.object_position(self.top), sim.object_position(self.bottom)
+        return batch_norm(red[:, :2] - blue[:, :2])
 
-    def _on_blue(self, physics: SoArmPhysics, offset: float) -> bool:
+    def _on_blue(self, sim: SimArrays, offset: Array) -> Array:
         """The red cube sits on top of the blue cube (held or not)."""
-        if offset > STACK_RADIUS_M:
-            return False
-        blue_top = physics.object_position(self.bottom)[2] + CUBE_HALF_M
-        red_bottom = physics.object_height(self.top) + constants.TABLE_TOP_Z_M
-        return abs(red_bottom - blue_top) <= STACK_HEIGHT_TOL_M
+        blue_top = sim.object_position(self.bottom)[:, 2] + CUBE_HALF_M
+        red_bottom = sim.object_height(self.top) + constants.TABLE_TOP_Z_M
+        return (offset <= STACK_RADIUS_M) & (
+            sim.xp.abs(red_bottom - blue_top) <= STACK_HEIGHT_TOL_M
+        )
 
-    def evaluate(self, physics: SoArmPhysics) -> Evaluation:
-        offset = self._offset(physics)
-        on_blue = self._on_blue(physics, offset)
+    def evaluate(self, sim: SimArrays) -> Evaluation:
+        offset = self._offset(sim)
+        on_blue = self._on_blue(sim, offset)
         return {
             "success": (
                 on_blue
-                and physics.touching(self.top, self.bottom)
-                and not physics.touched_by_jaws(self.top)
-                and not physics.touched_by_jaws(self.bottom)
-                and physics.object_speed(self.top) < RESTING_SPEED_M_S
-                and physics.object_speed(self.bottom) < RESTING_SPEED_M_S
+                & sim.touching(self.top, self.bottom)
+                & ~sim.touched_by_jaws(self.top)
+                & ~sim.touched_by_jaws(self.bottom)
+                & (sim.object_speed(self.top) < RESTING_SPEED_M_S)
+                & (sim.object_speed(self.bottom) < RESTING_SPEED_M_S)
             ),
             "on_blue": on_blue,
             "offset_m": offset,
-            **pick_progress(physics, self.top),
+            **pick_progress(sim, self.top),
         }
 
-    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, float]:
+    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
         offset = evaluation["offset_m"]
         return pick_and_place_terms(
             on_target=evaluation["on_blue"],
@@ -171,11 +166,13 @@ class StackCubeTask(Task):
             near_target=tolerance(offset, STACK_RADIUS_M, PLACE_MARGIN_M),
         )
 
-    def compute_info(self, physics: SoArmPhysics, evaluation: Evaluation) -> dict[str, Any]:
+    def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Any]:
+        blue = sim.object_position(self.bottom)
         return {
-            "red_cube_pos": physics.object_position(self.top).tolist(),
-            "blue_cube_pos": physics.object_position(self.bottom).tolist(),
-            "target_pos": self.stack_target(physics).tolist(),
+            "red_cube_pos": sim.object_position(self.top),
+            "blue_cube_pos": blue,
+            # Where the red cube's centre rests when stacked: on top of the blue cube.
+            "target_pos": sim.xp.concat([blue[:, :2], blue[:, 2:] + CUBE_SIZE_M], axis=1),
         }
 
 

@@ -27,6 +27,7 @@ import numpy as np
 from gymnasium import spaces
 
 from gym_soarm import constants
+from gym_soarm.sim.arrays import Array, SimArrays
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks.base import StateField, Task
 
@@ -100,17 +101,22 @@ class StateObservation:
         high[self._task_slice] = task_high
         return spaces.Box(-high, high, dtype=np.float32)
 
+    def batch(self, sim: SimArrays, commanded_rad: Array) -> Array:
+        """The observations of ``sim``'s ``n`` states, ``(n, size)`` float32.
+
+        Args:
+            sim: the simulations.
+            commanded_rad: ``(n, 6)``: each environment's commanded servo targets.
+        """
+        xp = sim.xp
+        jaw = sim.grasp_center()
+        state = self._task.batch_state(sim)
+        parts = [sim.joint_angles(), sim.joint_velocities(), commanded_rad, jaw, state]
+        parts += [state[:, start : start + 3] - jaw for start in self._jaw_to]
+        parts += [state[:, b : b + 3] - state[:, a : a + 3] for (_, a), (_, b) in self._pairs]
+        return xp.astype(xp.concat(parts, axis=1), xp.float32)
+
     def __call__(self, physics: SoArmPhysics, commanded_rad: np.ndarray) -> np.ndarray:
-        """The observation of the current state (a new float32 array)."""
-        jaw = physics.grasp_center()
-        state = self._task.environment_state(physics)
-        parts = [
-            physics.joint_angles(),
-            physics.joint_velocities(),
-            commanded_rad,
-            jaw,
-            state,
-        ]
-        parts += [state[start : start + 3] - jaw for start in self._jaw_to]
-        parts += [state[b : b + 3] - state[a : a + 3] for (_, a), (_, b) in self._pairs]
-        return np.concatenate(parts).astype(np.float32)
+        """The observation of one environment's state (a new float32 array)."""
+        sim = self._task.arrays(physics)
+        return self.batch(sim, commanded_rad[None])[0]

@@ -1,0 +1,326 @@
+"""The state of a batch of simulations as arrays: what tasks read to score a step.
+
+A task's evaluation, reward terms, success, info and ``state`` observation are functions
+of a :class:`SimArrays` (:mod:`gym_soarm.tasks.base`): the positions, velocities, sites
+and contact sensors of ``n`` simulations of one scene, every accessor answering with a
+leading batch axis (``object_position("cube")`` is ``(n, 3)``, ``grasped("cube")`` is
+``(n,)`` bool). One environment is a batch of one (:meth:`SimArrays.of_physics`, views
+of its own ``MjData``); the batched vector env binds the same fields of all its
+simulations at once (``mujoco.batch``).
+
+The arrays may be NumPy arrays or any array-API library's (torch tensors: the same task
+code runs on them, :func:`namespace`), so a GPU physics backend only has to hand over
+its arrays. Contacts come from the ``found`` contact sensors the scene adds
+(:func:`gym_soarm.sim.scene.contact_sensor_name`), since a batch keeps no contact list.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+import mujoco
+import numpy as np
+from array_api_compat import array_namespace
+
+from gym_soarm import constants
+from gym_soarm.sim.scene import contact_sensor_name
+
+if TYPE_CHECKING:
+    from gym_soarm.sim.physics import SoArmPhysics
+
+Array = Any
+"""An array of one array-API library (NumPy here; torch tensors work the same)."""
+
+ARRAY_FIELDS: tuple[str, ...] = ("qpos", "qvel", "qacc", "site_xpos", "geom_xpos", "sensordata")
+"""The ``MjData`` fields a :class:`SimArrays` reads (``mujoco.batch`` binds them)."""
+
+
+_NUMPY_IS_STANDARD = hasattr(np, "concat") and hasattr(np, "atan2")
+
+
+def namespace(*arrays: Array) -> Any:
+    """The array-API namespace of ``arrays``: NumPy itself for NumPy arrays (2.x speaks
+    the standard), else ``array_api_compat``'s (torch ...)."""
+    if _NUMPY_IS_STANDARD and all(isinstance(a, np.ndarray) for a in arrays):
+        return np
+    return array_namespace(*arrays)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Object:
+    shape: str
+    size: tuple[float, ...]
+    qpos: int
+    dof: int
+
+
+@dataclasses.dataclass(frozen=True)
+class SimIndex:
+    """Where every named part of one scene's model lies in the arrays: found once.
+
+    Built from a model by :meth:`of_model`; every simulation of a batch shares it.
+    """
+
+    arm_qpos: tuple[int, ...]
+    arm_dof: tuple[int, ...]
+    grasp_site: int
+    gripper_site: int
+    objects: Mapping[str, _Object]
+    fixture_sites: Mapping[str, int]
+    fixture_joints: Mapping[str, int]
+    contacts: Mapping[tuple[str, str], int]
+    """Sensor address of each contact sensor, keyed by both orders of its pair."""
+    touch: tuple[int, int]
+    pads: tuple[int, int]
+    """Geom ids of the fixed and the moving jaw pad."""
+
+    @classmethod
+    def of_model(cls, model: mujoco.MjModel, layout: Any) -> SimIndex:
+        """The index of ``model``, a scene compiled with ``layout``'s objects and fixtures."""
+
+        def oid(kind: mujoco.mjtObj, name: str) -> int:
+            return mujoco.mj_name2id(model, kind, name)
+
+        joint, site = mujoco.mjtObj.mjOBJ_JOINT, mujoco.mjtObj.mjOBJ_SITE
+        arm = [oid(joint, name) for name in constants.JOINT_NAMES]
+        objects = {}
+        for item in layout.objects:
+            j = oid(joint, item.name)
+            objects[item.name] = _Object(
+                item.shape,
+                tuple(item.size_m),
+                int(model.jnt_qposadr[j]),
+                int(model.jnt_dofadr[j]),
+            )
+        fixture_joints = {}
+        for fixture in layout.fixtures:
+            j = oid(joint, fixture.name)
+            if j >= 0:
+                fixture_joints[fixture.name] = int(model.jnt_qposadr[j])
+        contacts: dict[tuple[str, str], int] = {}
+        prefix = contact_sensor_name("", "")[: -len(":")]
+        for sensor in range(model.nsensor):
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SENSOR, sensor) or ""
+            if name.startswith(prefix):
+                first, second = name[len(prefix) :].split(":")
+                contacts[first, second] = contacts[second, first] = int(model.sensor_adr[sensor])
+        touch = tuple(
+            int(model.sensor_adr[oid(mujoco.mjtObj.mjOBJ_SENSOR, name)])
+            for name in constants.JAW_TOUCH_SENSORS
+        )
+        return cls(
+            arm_qpos=tuple(int(model.jnt_qposadr[j]) for j in arm),
+            arm_dof=tuple(int(model.jnt_dofadr[j]) for j in arm),
+            grasp_site=oid(site, constants.GRASP_SITE),
+            gripper_site=oid(site, constants.GRIPPER_SITE),
+            objects=objects,
+            fixture_sites={f.name: oid(site, f.name) for f in layout.fixtures},
+            fixture_joints=fixture_joints,
+            contacts=contacts,
+            touch=(touch[0], touch[1]),
+            pads=tuple(oid(mujoco.mjtObj.mjOBJ_GEOM, name) for name in constants.JAW_PAD_GEOMS),
+        )
+
+
+class SimArrays:
+    """``n`` simulations of one scene, read as arrays with a leading batch axis.
+
+    Args:
+        index: where the scene's parts lie (:class:`SimIndex`).
+        arrays: the ``MjData`` fields of :data:`ARRAY_FIELDS`, each ``(n, ...)``, as
+            they are after a step (positions-stage values current).
+        episode: each environment's per-episode values, ``(n,)`` arrays by name (what
+            a task keeps between steps: a start distance, the most an object rose ...).
+            Tasks may update them in place.
+    """
+
+    def __init__(
+        self, index: SimIndex, arrays: Mapping[str, Array], episode: dict[str, Array] | None = None
+    ) -> None:
+        self.index = index
+        self.qpos = arrays["qpos"]
+        self.qvel = arrays["qvel"]
+        self.qacc = arrays["qacc"]
+        self.site_xpos = arrays["site_xpos"]
+        self.geom_xpos = arrays["geom_xpos"]
+        self.sensordata = arrays["sensordata"]
+        self.episode: dict[str, Array] = {} if episode is None else episode
+        self.xp = namespace(self.qpos)
+
+    @classmethod
+    def of_physics(
+        cls, physics: SoArmPhysics, episode: dict[str, Array] | None = None
+    ) -> SimArrays:
+        """One environment's simulation as a batch of one: live views of its ``MjData``."""
+        data = physics.data.ptr
+        arrays = {name: getattr(data, name)[None] for name in ARRAY_FIELDS}
+        return cls(physics.sim_index, arrays, episode)
+
+    @property
+    def n(self) -> int:
+        """How many simulations."""
+        return int(self.qpos.shape[0])
+
+    # --- the robot ---------------------------------------------------------------------
+    def joint_angles(self) -> Array:
+        """``(n, 6)``: the joint positions (rad), gripper last."""
+        return self.xp.stack([self.qpos[:, a] for a in self.index.arm_qpos], axis=1)
+
+    def joint_velocities(self) -> Array:
+        """``(n, 6)``: the joint velocities (rad/s)."""
+        return self.xp.stack([self.qvel[:, a] for a in self.index.arm_dof], axis=1)
+
+    def grasp_center(self) -> Array:
+        """``(n, 3)``: where a held object's centre sits, between the jaws (m)."""
+        return self.site_xpos[:, self.index.grasp_site, :]
+
+    def gripper_position(self) -> Array:
+        """``(n, 3)``: the ``gripperframe`` site (m)."""
+        return self.site_xpos[:, self.index.gripper_site, :]
+
+    def jaw_pads_center(self) -> Array:
+        """``(n, 3)``: midway between the two jaw pads (the centre of closed jaws, m)."""
+        fixed, moving = self.index.pads
+        return (self.geom_xpos[:, fixed, :] + self.geom_xpos[:, moving, :]) / 2
+
+    # --- objects -----------------------------------------------------------------------
+    def _object(self, name: str) -> _Object:
+        item = self.index.objects.get(name)
+        if item is None:
+            raise ValueError(
+                f"this scene has no object {name!r}; its objects are {list(self.index.objects)}."
+            )
+        return item
+
+    def object_position(self, name: str) -> Array:
+        """``(n, 3)``: the centre of object ``name`` (m)."""
+        q = self._object(name).qpos
+        return self.qpos[:, q : q + 3]
+
+    def object_quaternion(self, name: str) -> Array:
+        """``(n, 4)``: the orientation of object ``name`` (w, x, y, z)."""
+        q = self._object(name).qpos
+        return self.qpos[:, q + 3 : q + 7]
+
+    def object_velocity(self, name: str) -> Array:
+        """``(n, 3)``: the linear velocity of object ``name`` (m/s)."""
+        v = self._object(name).dof
+        return self.qvel[:, v : v + 3]
+
+    def object_speed(self, name: str) -> Array:
+        """``(n,)``: the linear speed of object ``name`` (m/s)."""
+        return norm(self.object_velocity(name))
+
+    def object_yaw(self, name: str) -> Array:
+        """``(n,)``: the yaw (rad) of object ``name``'s x axis about the world z axis."""
+        q = self.object_quaternion(name)
+        w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+        return self.xp.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+    def object_height(self, name: str) -> Array:
+        """``(n,)``: the height of object ``name``'s lowest point above the table top (m)."""
+        item = self._object(name)
+        q = item.qpos
+        xp = self.xp
+        z, w, x, y, k = (self.qpos[:, q + i] for i in range(2, 7))
+        r20 = 2.0 * (x * k - w * y)
+        r21 = 2.0 * (y * k + w * x)
+        r22 = 1.0 - 2.0 * (x * x + y * y)
+        size = item.size
+        if item.shape == "box":
+            reach = size[0] * xp.abs(r20) + size[1] * xp.abs(r21) + size[2] * xp.abs(r22)
+        elif item.shape == "cylinder":
+            reach = size[1] * xp.abs(r22) + size[0] * xp.sqrt(xp.maximum(1.0 - r22 * r22, 0.0))
+        else:
+            reach = size[0] + 0.0 * z
+        return z - reach - constants.TABLE_TOP_Z_M
+
+    # --- fixtures ----------------------------------------------------------------------
+    def fixture_position(self, name: str) -> Array:
+        """``(n, 3)``: fixture ``name``'s site (the point a task aims at, m)."""
+        site = self.index.fixture_sites.get(name)
+        if site is None:
+            raise ValueError(
+                f"this scene has no fixture {name!r}; its fixtures are "
+                f"{list(self.index.fixture_sites)}."
+            )
+        return self.site_xpos[:, site, :]
+
+    def fixture_joint_position(self, name: str) -> Array:
+        """``(n,)``: the position of fixture ``name``'s joint (m for a slide)."""
+        adr = self.index.fixture_joints.get(name)
+        if adr is None:
+            raise ValueError(f"fixture {name!r} has no joint; it does not move.")
+        return self.qpos[:, adr]
+
+    # --- contacts ----------------------------------------------------------------------
+    def _contact(self, first: str, second: str) -> Array:
+        adr = self.index.contacts.get((first, second))
+        if adr is None:
+            raise ValueError(
+                f"no contact sensor between {first!r} and {second!r}: this scene has the "
+                "jaw pads against objects and fixture parts, and objects against the table, "
+                "each other and fixtures."
+            )
+        return self.sensordata[:, adr] > 0
+
+    def jaw_contacts(self, name: str) -> tuple[Array, Array]:
+        """``(n,)`` each: whether the fixed and the moving jaw pad touch object or fixture
+        part ``name`` (a fixture part is ``"<fixture>_<index>"``)."""
+        fixed, moving = constants.JAW_PAD_GEOMS
+        return self._contact(fixed, name), self._contact(moving, name)
+
+    def grasped(self, name: str) -> Array:
+        """``(n,)``: both jaw pads touch object ``name``."""
+        fixed, moving = self.jaw_contacts(name)
+        return fixed & moving
+
+    def touched_by_jaws(self, name: str) -> Array:
+        """``(n,)``: either jaw pad touches object ``name``."""
+        fixed, moving = self.jaw_contacts(name)
+        return fixed | moving
+
+    def touching(self, first: str, second: str) -> Array:
+        """``(n,)``: object ``first`` touches ``second`` (an object, a fixture or ``"table"``)."""
+        second = constants.TABLE_GEOM if second == "table" else second
+        first = constants.TABLE_GEOM if first == "table" else first
+        return self._contact(first, second)
+
+    def jaw_touch(self) -> Array:
+        """``(n, 2)``: the normal force (N) on the fixed and the moving jaw pad."""
+        return self.xp.stack([self.sensordata[:, a] for a in self.index.touch], axis=1)
+
+    # --- soundness -----------------------------------------------------------------------
+    def state_is_finite(self) -> Array:
+        """``(n,)``: positions, velocities and accelerations are all finite."""
+        xp = self.xp
+        total = xp.sum(self.qpos, axis=1) + xp.sum(self.qvel, axis=1) + xp.sum(self.qacc, axis=1)
+        return xp.isfinite(total)
+
+
+def norm(vectors: Array) -> Array:
+    """The Euclidean norm over the last axis."""
+    xp = namespace(vectors)
+    return xp.sqrt(xp.sum(vectors * vectors, axis=-1))
+
+
+def item(value: Array | list) -> Any:
+    """One simulation's value out of a batch of one, as a plain Python value or array.
+
+    ``value``: an array with a leading batch axis, or a list with one value per
+    simulation (for values that are not numbers: a colour, a cell or None).
+    """
+    if isinstance(value, list):
+        return value[0]
+    array = np.asarray(value)
+    if array.ndim == 1:
+        scalar = array[0]
+        if array.dtype == np.bool_:
+            return bool(scalar)
+        return int(scalar) if array.dtype.kind in "iu" else float(scalar)
+    return array[0].copy()
+
+
+__all__ = ["ARRAY_FIELDS", "SimArrays", "SimIndex", "item", "namespace", "norm"]
