@@ -715,15 +715,7 @@ class SoArmEnv(gym.Env):
         array = self._validate_action(action)
         if self._needs_reset:
             raise RuntimeError(f"call reset() before step(): {self._no_episode_reason}.")
-        target = self._control.targets(array, self._commanded)
-        self._commanded = target.copy()
-        if self._delay_steps:
-            # The servos receive the action of ``_delay_steps`` steps before.
-            self._pending_targets.append(target)
-            target = self._pending_targets.pop(0)
-        if self._servo is not None:
-            target = self._servo(target)
-        self._task.before_step(target, self._physics)
+        self._task.before_step(self._servo_target(array), self._physics)
         try:
             self._physics.step(constants.N_SUBSTEPS)
         except control.PhysicsError as exc:
@@ -749,6 +741,19 @@ class SoArmEnv(gym.Env):
         if self._viewer is not None:
             self._viewer.show(info)
         return obs, reward, success, False, info
+
+    def _servo_target(self, action: np.ndarray) -> np.ndarray:
+        """The servo targets (rad) this step sends for a validated ``action``: the control
+        mode's, after the servo delay and the servo model; updates the commanded targets."""
+        target = self._control.targets(action, self._commanded)
+        self._commanded = target.copy()
+        if self._delay_steps:
+            # The servos receive the action of ``_delay_steps`` steps before.
+            self._pending_targets.append(target)
+            target = self._pending_targets.pop(0)
+        if self._servo is not None:
+            target = self._servo(target)
+        return target
 
     def _success_reward(self) -> float:
         """The dense reward of a success step: 1, plus 1 for every step left to the limit.

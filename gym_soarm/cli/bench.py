@@ -107,7 +107,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--vector-scaling",
         default="",
         metavar="COUNTS",
-        help="also measure vector envs (native processes, AsyncVectorEnv, SyncVectorEnv) at "
+        help="also measure vector envs (batched, native processes, AsyncVectorEnv, "
+        "SyncVectorEnv) at "
         "these comma-separated num_envs, e.g. 1,2,4,8,16, against one env",
     )
     parser.add_argument(
@@ -118,7 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--vector-modes",
-        default="native,async,sync",
+        default="batched,native,async,sync",
         help="vector envs of --vector-scaling (default: %(default)s)",
     )
     parser.add_argument(

@@ -17,6 +17,7 @@ its arrays. Contacts come from the ``found`` contact sensors the scene adds
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -43,9 +44,26 @@ _NUMPY_IS_STANDARD = hasattr(np, "concat") and hasattr(np, "atan2")
 def namespace(*arrays: Array) -> Any:
     """The array-API namespace of ``arrays``: NumPy itself for NumPy arrays (2.x speaks
     the standard), else ``array_api_compat``'s (torch ...)."""
-    if _NUMPY_IS_STANDARD and all(isinstance(a, np.ndarray) for a in arrays):
+    numpy_only = len(arrays) == 1 or all(type(a) is np.ndarray for a in arrays)
+    if _NUMPY_IS_STANDARD and type(arrays[0]) is np.ndarray and numpy_only:
         return np
     return array_namespace(*arrays)
+
+
+def _cached(method: Any) -> Any:
+    """Keep what ``method(self, *args)`` answered until :meth:`SimArrays.clear`."""
+    key = method.__name__
+
+    def read(self: SimArrays, *args: Any) -> Any:
+        entry = (key, *args)
+        value = self._cache.get(entry)
+        if value is None:
+            value = self._cache[entry] = method(self, *args)
+        return value
+
+    read.__name__ = key
+    read.__doc__ = method.__doc__
+    return read
 
 
 @dataclasses.dataclass(frozen=True)
@@ -75,6 +93,16 @@ class SimIndex:
     touch: tuple[int, int]
     pads: tuple[int, int]
     """Geom ids of the fixed and the moving jaw pad."""
+
+    @functools.cached_property
+    def arm_qpos_index(self) -> np.ndarray:
+        """:attr:`arm_qpos` as an index array."""
+        return np.array(self.arm_qpos, dtype=np.intp)
+
+    @functools.cached_property
+    def arm_dof_index(self) -> np.ndarray:
+        """:attr:`arm_dof` as an index array."""
+        return np.array(self.arm_dof, dtype=np.intp)
 
     @classmethod
     def of_model(cls, model: mujoco.MjModel, layout: Any) -> SimIndex:
@@ -148,15 +176,18 @@ class SimArrays:
         self.sensordata = arrays["sensordata"]
         self.episode: dict[str, Array] = {} if episode is None else episode
         self.xp = namespace(self.qpos)
+        self._cache: dict[tuple[Any, ...], Any] = {}
+
+    def clear(self) -> None:
+        """Forget what was read: call after the arrays changed (a step, a reset)."""
+        self._cache.clear()
 
     @classmethod
     def of_physics(
         cls, physics: SoArmPhysics, episode: dict[str, Array] | None = None
     ) -> SimArrays:
         """One environment's simulation as a batch of one: live views of its ``MjData``."""
-        data = physics.data.ptr
-        arrays = {name: getattr(data, name)[None] for name in ARRAY_FIELDS}
-        return cls(physics.sim_index, arrays, episode)
+        return cls(physics.sim_index, physics.batch_views, episode)
 
     @property
     def n(self) -> int:
@@ -164,13 +195,15 @@ class SimArrays:
         return int(self.qpos.shape[0])
 
     # --- the robot ---------------------------------------------------------------------
+    @_cached
     def joint_angles(self) -> Array:
         """``(n, 6)``: the joint positions (rad), gripper last."""
-        return self.xp.stack([self.qpos[:, a] for a in self.index.arm_qpos], axis=1)
+        return self.qpos[:, self.index.arm_qpos_index]
 
+    @_cached
     def joint_velocities(self) -> Array:
         """``(n, 6)``: the joint velocities (rad/s)."""
-        return self.xp.stack([self.qvel[:, a] for a in self.index.arm_dof], axis=1)
+        return self.qvel[:, self.index.arm_dof_index]
 
     def grasp_center(self) -> Array:
         """``(n, 3)``: where a held object's centre sits, between the jaws (m)."""
@@ -180,6 +213,7 @@ class SimArrays:
         """``(n, 3)``: the ``gripperframe`` site (m)."""
         return self.site_xpos[:, self.index.gripper_site, :]
 
+    @_cached
     def jaw_pads_center(self) -> Array:
         """``(n, 3)``: midway between the two jaw pads (the centre of closed jaws, m)."""
         fixed, moving = self.index.pads
@@ -209,6 +243,7 @@ class SimArrays:
         v = self._object(name).dof
         return self.qvel[:, v : v + 3]
 
+    @_cached
     def object_speed(self, name: str) -> Array:
         """``(n,)``: the linear speed of object ``name`` (m/s)."""
         return norm(self.object_velocity(name))
@@ -219,6 +254,7 @@ class SimArrays:
         w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
         return self.xp.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
+    @_cached
     def object_height(self, name: str) -> Array:
         """``(n,)``: the height of object ``name``'s lowest point above the table top (m)."""
         item = self._object(name)
@@ -256,6 +292,7 @@ class SimArrays:
         return self.qpos[:, adr]
 
     # --- contacts ----------------------------------------------------------------------
+    @_cached
     def _contact(self, first: str, second: str) -> Array:
         adr = self.index.contacts.get((first, second))
         if adr is None:
@@ -302,8 +339,7 @@ class SimArrays:
 
 def norm(vectors: Array) -> Array:
     """The Euclidean norm over the last axis."""
-    xp = namespace(vectors)
-    return xp.sqrt(xp.sum(vectors * vectors, axis=-1))
+    return namespace(vectors).sqrt((vectors * vectors).sum(-1))
 
 
 def item(value: Array | list) -> Any:

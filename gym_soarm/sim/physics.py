@@ -22,7 +22,7 @@ from dm_control.rl import control
 
 from gym_soarm import constants
 from gym_soarm.sim import objects, scene
-from gym_soarm.sim.arrays import SimIndex
+from gym_soarm.sim.arrays import ARRAY_FIELDS, SimIndex
 
 logger = logging.getLogger(__name__)
 _WARNING_NAMES: tuple[str, ...] = tuple(mujoco.mjtWarning.__members__)
@@ -117,6 +117,9 @@ class SoArmPhysics(dm_mujoco.Physics):
         self._site_xpos = d.site_xpos
         self._site_xmat = d.site_xmat
         self._sensordata = d.sensordata
+        self.batch_views = {name: getattr(d, name)[None] for name in ARRAY_FIELDS}
+        """Live ``(1, ...)`` views of the fields a :class:`~gym_soarm.sim.arrays.SimArrays`
+        reads: this simulation as a batch of one."""
 
         def jid(name: str) -> int:
             return mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)

@@ -16,7 +16,7 @@ from gym_soarm.tasks.base import TaskSpec
 from gym_soarm.validation import ArgumentTypeError
 
 ENTRY_POINT = "gym_soarm.env:SoArmEnv"
-VECTOR_ENTRY_POINT = "gym_soarm.vector:SoArmVectorEnv"
+VECTOR_ENTRY_POINT = "gym_soarm.batched:make_vector_env"
 
 _TASKS: dict[str, TaskSpec] = {}
 _SPELLINGS: dict[str, str] = {}  # name, alias or env id -> name

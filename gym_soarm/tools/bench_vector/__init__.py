@@ -5,8 +5,11 @@ measures it; ``python -m gym_soarm.tools.bench_vector`` runs it alone). For each
 ``num_envs`` the same environment is built as one ``gym.make`` environment (the
 baseline) and as each vector env:
 
-* ``native``: ``gym.make_vec(..., vectorization_mode="vector_entry_point")``, the
-  worker processes of :class:`gym_soarm.vector.SoArmVectorEnv` (one per CPU);
+* ``batched``: ``gym.make_vec(..., vectorization_mode="vector_entry_point",
+  vector_env="batched")``, :class:`gym_soarm.batched.BatchedVectorEnv`: every simulation
+  in one ``mujoco.batch`` call (a thread per CPU), the task scored as arrays;
+* ``native``: the same with ``vector_env="processes"``, the worker processes of
+  :class:`gym_soarm.vector.SoArmVectorEnv` (one per CPU);
 * ``async``: ``gymnasium.vector.AsyncVectorEnv``, one process per environment
   (``forkserver`` context);
 * ``sync``: ``gymnasium.vector.SyncVectorEnv``, every environment in turn in this thread.
@@ -23,6 +26,12 @@ this machine allows: cycling through several simulations in one process costs mo
 per step than stepping one (each has its own 5 MB model, so they no longer fit the
 CPU caches), and two cores that share caches and memory, or a busy host, give less than
 2x. ``ratio_to_ceiling`` puts each vector env's speedup against it.
+
+Each round also measures the bare physics: ``batch_physics`` steps the same ``num_envs``
+simulations with ``mujoco.batch`` alone (the same threads, the same substeps, no task,
+no observation), the ceiling of the batched env (``ratio_to_physics``); at ``num_envs``
+1 it is one simulation's bare physics, against which the single environment's rate is
+put (``single_to_physics``).
 """
 
 from __future__ import annotations
@@ -44,7 +53,7 @@ from gym_soarm.processes import cpu_count, end_process, worker_context
 from gym_soarm.tools.timings import spread
 
 DEFAULT_ENV_ID = "gym_soarm/LiftCube-v0"
-VECTOR_MODES: tuple[str, ...] = ("native", "async", "sync")
+VECTOR_MODES: tuple[str, ...] = ("batched", "native", "async", "sync")
 DEFAULT_SIZE = (96, 128)  # (height, width) of camera observations
 N_ACTIONS = 64  # random actions (or batches) drawn up front and cycled
 
@@ -69,11 +78,21 @@ def make_vector(
     Raises:
         ValueError: an unknown ``mode``.
     """
+    if mode == "batched":
+        return gym.make_vec(
+            env_id,
+            num_envs=num_envs,
+            vectorization_mode="vector_entry_point",
+            vector_env="batched",
+            num_threads=num_processes,
+            **kwargs,
+        )
     if mode == "native":
         return gym.make_vec(
             env_id,
             num_envs=num_envs,
             vectorization_mode="vector_entry_point",
+            vector_env="processes",
             num_processes=num_processes,
             **kwargs,
         )
@@ -122,6 +141,50 @@ def vector_rate(envs: gym.vector.VectorEnv, actions: np.ndarray, seconds: float)
         if time.perf_counter() >= deadline:
             break
     return batches * envs.num_envs / (time.perf_counter() - started)
+
+
+class BatchPhysics:
+    """``num_envs`` simulations of ``env_id``'s scene stepped by ``mujoco.batch`` alone:
+    the servo targets of random actions, the control step's substeps, nothing else."""
+
+    def __init__(
+        self, env_id: str, kwargs: dict[str, Any], num_envs: int, threads: int | None = None
+    ) -> None:
+        import mujoco
+        import mujoco.batch
+
+        from gym_soarm import constants
+
+        env = gym.make(env_id, **kwargs)
+        env.reset(seed=0)
+        physics = env.unwrapped.physics
+        model, data = physics.model.ptr, physics.data.ptr
+        self.batch = mujoco.batch.Batch(model, num_envs, min(num_envs, threads or cpu_count()))
+        state = np.empty(mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_INTEGRATION))
+        mujoco.mj_getState(model, data, state, mujoco.mjtState.mjSTATE_INTEGRATION)
+        self.batch.state[:] = state
+        low, high = physics.control_range()
+        rng = np.random.default_rng(0)
+        self.targets = rng.uniform(low, high, (N_ACTIONS, num_envs, len(low)))
+        self.actuators = physics._actuator_ids
+        self.ctrl = self.batch.bind("ctrl")
+        self.substeps = constants.N_SUBSTEPS
+        self.stage = int(mujoco.mjtStage.mjSTAGE_VEL)
+        self.num_envs = num_envs
+        env.close()
+
+    def rate(self, seconds: float) -> float:
+        """Simulation steps/s (each of the control step's substeps) for about ``seconds``."""
+        steps = 0
+        started = time.perf_counter()
+        deadline = started + seconds
+        while True:
+            self.ctrl[:, self.actuators] = self.targets[steps % N_ACTIONS]
+            self.batch.step(None, self.substeps, self.stage)
+            steps += 1
+            if time.perf_counter() >= deadline:
+                break
+        return steps * self.num_envs / (time.perf_counter() - started)
 
 
 def _free_runner(
@@ -241,14 +304,17 @@ def measure(
             batches = rng.uniform(low, high, (N_ACTIONS, n, len(low))).astype(np.float32)
             vectors: dict[str, gym.vector.VectorEnv] = {}
             ceiling = Ceiling(env_id, kwargs, n, num_processes)
-            rates: dict[str, list[float]] = {"single": [], "ceiling": []} | {m: [] for m in modes}
+            physics = BatchPhysics(env_id, kwargs, n, num_processes)
+            rates: dict[str, list[float]] = {"single": [], "ceiling": [], "physics": []} | {
+                m: [] for m in modes
+            }
             try:
                 for mode in modes:
                     vectors[mode] = make_vector(env_id, n, mode, kwargs, num_processes)
                     vectors[mode].reset(seed=0)
                     vectors[mode].step(batches[0])  # warm up (GL contexts, pipes)
                 ceiling.rate(0.05)  # warm up (every process built and stepping)
-                order = ["single", "ceiling", *modes]
+                order = ["single", "ceiling", "physics", *modes]
                 for round_index in range(rounds):
                     shift = round_index % len(order)  # nobody always goes first
                     for name in order[shift:] + order[:shift]:
@@ -256,6 +322,8 @@ def measure(
                             rates[name].append(single_rate(single, single_actions, seconds))
                         elif name == "ceiling":
                             rates[name].append(ceiling.rate(seconds))
+                        elif name == "physics":
+                            rates[name].append(physics.rate(seconds))
                         else:
                             rates[name].append(vector_rate(vectors[name], batches, seconds))
             finally:
@@ -279,6 +347,15 @@ def measure(
                         "ratio_to_ceiling": statistics.median(
                             v / c for v, c in zip(speedups, ceiling_per_round, strict=True)
                         ),
+                        "batch_physics_steps_per_s": statistics.median(rates["physics"]),
+                        "ratio_to_physics": statistics.median(
+                            v / p for v, p in zip(rates[mode], rates["physics"], strict=True)
+                        ),
+                        "single_to_physics": statistics.median(
+                            s / p for s, p in zip(rates["single"], rates["physics"], strict=True)
+                        )
+                        if n == 1
+                        else None,
                     }
                 )
     finally:
@@ -303,7 +380,12 @@ def measure(
 def format_table(report: dict[str, Any]) -> str:
     """One scaling report as a Markdown table: a row per count, a column pair per mode."""
     modes = report["modes"]
-    header = ["num_envs", *(f"{m} steps/s (speedup)" for m in modes), "ceiling speedup"]
+    header = [
+        "num_envs",
+        *(f"{m} steps/s (speedup)" for m in modes),
+        "ceiling speedup",
+        "bare batch physics steps/s",
+    ]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     by_key = {(r["mode"], r["num_envs"]): r for r in report["rows"]}
     for n in sorted({r["num_envs"] for r in report["rows"]}):
@@ -312,6 +394,7 @@ def format_table(report: dict[str, Any]) -> str:
             row = by_key[(mode, n)]
             cells.append(f"{row['steps_per_s']['median']:,.0f} ({row['speedup']:.2f}x)")
         cells.append(f"{by_key[(modes[0], n)]['ceiling_speedup']:.2f}x")
+        cells.append(f"{by_key[(modes[0], n)]['batch_physics_steps_per_s']:,.0f}")
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

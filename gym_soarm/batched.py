@@ -1,0 +1,685 @@
+"""The batched vector env: all N simulations stepped in one ``mujoco.batch`` call.
+
+``gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point")`` builds a
+:class:`BatchedVectorEnv` for state observations (``vector_env="auto"``, the default;
+``vector_env="batched"`` asks for it whatever the observations).
+
+* One process. Every control step sets the N simulations' servo targets and steps them
+  all with one call to :class:`mujoco.batch.Batch` (MuJoCo's own thread pool, the GIL
+  released, bit-identical to stepping each alone), then scores the whole batch once:
+  the task's evaluation, reward terms, success, info and ``state`` observation are array
+  code over the batch (:mod:`gym_soarm.tasks.base`), so no per-environment Python runs
+  on a step. The joint control modes are converted for the whole batch too; the
+  end-effector modes, a servo delay and the STS3215 servo model run per environment.
+* Each environment is still a :class:`~gym_soarm.env.SoArmEnv`, which resets (placement,
+  variation, reset options, snapshots), renders and answers ``call``/``get_attr``; its
+  simulation is copied into the batch at its reset and back from it when it is asked
+  for. Pixel observations render each environment this way: the process-based
+  :class:`~gym_soarm.vector.SoArmVectorEnv` is faster for them, and ``"auto"`` picks it.
+* The episodes are those of N single ``gym.make`` environments, bit for bit: the same
+  observations, rewards, terminations, truncations and infos (batched as
+  ``SyncVectorEnv`` batches them), in each of the three autoreset modes.
+* A simulation that diverges (a MuJoCo warning or error, NaN, an object thrown off the
+  table) truncates its own episode with a warning naming its index, as a single
+  environment does; the others go on.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import warnings
+from collections.abc import Sequence
+from typing import Any
+
+import mujoco
+import mujoco.batch
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from gym_soarm import constants
+from gym_soarm.control import JOINT_DELTA, JOINT_POS, NormalizedControl
+from gym_soarm.env import SoArmEnv
+from gym_soarm.processes import cpu_count
+from gym_soarm.settings import STATE_OBS_TYPES
+from gym_soarm.sim.arrays import ARRAY_FIELDS, SimArrays
+from gym_soarm.validation import check_int
+from gym_soarm.vector import TIME_LIMIT_ATTRIBUTE, _get, _leaves, _nest, _parse_autoreset_mode
+
+_STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+_STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
+_WARNINGS: tuple[str, ...] = tuple(mujoco.mjtWarning.__members__)
+
+
+def _row(value: Any, i: int) -> Any:
+    """Environment ``i``'s value of one batched info entry, as a single env gives it."""
+    if isinstance(value, dict):
+        return {k: _row(v, i) for k, v in value.items() if not k.startswith("_")}
+    entry = value[i]
+    if value.dtype == np.bool_:
+        return bool(entry)
+    if value.dtype == object:
+        return entry
+    if value.ndim == 1:
+        return int(entry) if value.dtype.kind in "iu" else float(entry)
+    return entry.copy()
+
+
+def _column(values: Any, n: int) -> np.ndarray:
+    """One info entry for the batch as ``SyncVectorEnv`` batches it: an array."""
+    if isinstance(values, list):
+        first = values[0]
+        if all(isinstance(v, bool) for v in values):
+            return np.array(values, dtype=np.bool_)
+        if all(type(v) is int for v in values) or all(type(v) is float for v in values):
+            return np.array(values, dtype=type(first))
+        out = np.empty(n, dtype=object)
+        out[:] = values
+        return out
+    array = np.asarray(values)
+    return array.astype(np.float64) if array.dtype.kind == "f" else array
+
+
+class BatchedVectorEnv(VectorEnv):
+    """``num_envs`` :class:`~gym_soarm.env.SoArmEnv` simulations stepped as one batch.
+
+    Made by ``gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point")``
+    for state observations; every keyword ``gym.make`` takes is passed to each
+    environment.
+
+    Args:
+        num_envs: number of environments (at least 1).
+        max_episode_steps: truncate an episode after this many steps, as Gymnasium's
+            ``TimeLimit`` does (``make_vec`` passes the id's limit); None for no limit.
+        autoreset_mode: ``"NextStep"`` (default), ``"SameStep"`` or ``"Disabled"``, or a
+            :class:`gymnasium.vector.AutoresetMode`.
+        num_threads: the threads that step the simulations (default: the CPUs this
+            process may use, at most ``num_envs``).
+        copy: return fresh observation arrays on every call (default). With False the
+            same arrays are filled again by the next call.
+        **env_kwargs: the arguments of :class:`~gym_soarm.env.SoArmEnv`.
+
+    Raises:
+        ValueError: a bad ``num_envs``, ``num_threads``, ``autoreset_mode`` or
+            environment argument, before anything is built.
+    """
+
+    def __init__(
+        self,
+        num_envs: int,
+        max_episode_steps: int | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        num_threads: int | None = None,
+        copy: bool = True,
+        **env_kwargs: Any,
+    ) -> None:
+        self.closed = True
+        num_envs = check_int("num_envs", num_envs, 1)
+        if num_threads is None:
+            num_threads = cpu_count()
+        num_threads = min(check_int("num_threads", num_threads, 1), num_envs)
+        if max_episode_steps is not None:
+            max_episode_steps = check_int("max_episode_steps", max_episode_steps, 1)
+        self.autoreset_mode = _parse_autoreset_mode(autoreset_mode)
+        self.num_envs = num_envs
+        self.num_threads = num_threads
+        self.copy = bool(copy)
+        self.max_episode_steps = max_episode_steps
+
+        first = SoArmEnv(**env_kwargs)  # checks every argument
+        self.envs: list[SoArmEnv] = [first]
+        try:
+            self.envs += [SoArmEnv(**env_kwargs) for _ in range(num_envs - 1)]
+        except BaseException:
+            for env in self.envs:
+                env.close()
+            raise
+        self.settings = first.settings
+        """Every environment's settings (:class:`gym_soarm.settings.EnvSettings`)."""
+        self.metadata = dict(SoArmEnv.metadata)
+        self.metadata["autoreset_mode"] = self.autoreset_mode
+        self.render_mode = first.render_mode
+        self.single_action_space = first.action_space
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self.single_observation_space = first.observation_space
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self._leaves = _leaves(self.single_observation_space)
+        self._obs = [np.zeros((num_envs, *shape), dtype) for _, shape, dtype in self._leaves]
+
+        self._task = first.task_logic  # scores the batch; per-env values live in _episode
+        self._models = [env.physics.model.ptr for env in self.envs]
+        self._batch = mujoco.batch.Batch(self._models[0], num_envs, num_threads)
+        self._batch.set_models(self._models)
+        arrays = {name: self._batch.bind(name) for name in ARRAY_FIELDS}
+        self._ctrl = self._batch.bind("ctrl")
+        self._actuators = first.physics._actuator_ids
+        self._episode = {
+            name: np.zeros((num_envs, *shape)) for name, shape in self._task.episode_shapes.items()
+        }
+        self._sim = SimArrays(first.physics.sim_index, arrays, self._episode)
+        self._commanded = np.zeros((num_envs, len(constants.JOINT_NAMES)))
+        self._steps = np.zeros(num_envs, dtype=np.int64)  # this episode's, as the env's
+        self._elapsed = np.zeros(num_envs, dtype=np.int64)  # the time limit's count
+        self._in_batch = np.zeros(num_envs, dtype=np.bool_)  # env i's own data is stale
+        self._autoreset_envs = np.zeros(num_envs, dtype=np.bool_)
+        self._last_infos: dict[str, Any] = {}
+        self._control = self._batch_control(first)
+        self._instructions = np.empty(num_envs, dtype=object)
+        self._started = False
+        self.closed = False
+
+    @staticmethod
+    def _batch_control(env: SoArmEnv) -> Any:
+        """The control mode that converts the whole batch's actions at once, or None
+        where each environment converts its own (end-effector modes, LeRobot units)."""
+        control = env.control
+        mode = control.mode if isinstance(control, NormalizedControl) else control
+        if mode.name == JOINT_DELTA or (mode.name == JOINT_POS and env.units == "radians"):
+            return control
+        return None
+
+    # --- moving simulations between the batch and the environments ----------------------
+    def _load(self, i: int) -> None:
+        """Copy environment ``i`` (just reset or restored) into the batch."""
+        env = self.envs[i]
+        physics = env.physics
+        mujoco.mj_getState(physics.model.ptr, physics.data.ptr, self._batch.state[i], _STATE_SPEC)
+        for name, values in env.task_logic.episode.items():
+            self._episode[name][i] = values[0]
+        self._commanded[i] = env.commanded_targets
+        self._steps[i] = env._step_count
+        self._in_batch[i] = False
+        self._instructions[i] = env.task_description
+        self._sim.clear()
+
+    def _unload(self, i: int) -> SoArmEnv:
+        """Environment ``i`` with the batch's simulation and episode values copied back."""
+        env = self.envs[i]
+        if self._in_batch[i]:
+            physics = env.physics
+            self._batch.get_data(i, physics.data.ptr)
+            mujoco.mj_step1(physics.model.ptr, physics.data.ptr)  # what a step leaves computed
+            for name, values in env.task_logic.episode.items():
+                values[0] = self._episode[name][i]
+            env._commanded = self._commanded[i].copy()
+            env._step_count = int(self._steps[i])
+            self._in_batch[i] = False
+        return env
+
+    # --- Gymnasium API -------------------------------------------------------------------
+    def reset(
+        self,
+        *,
+        seed: int | Sequence[int | None] | None = None,
+        options: dict[str, Any] | None = None,
+    ) -> tuple[Any, dict[str, Any]]:
+        """Reset every environment (or those of ``options["reset_mask"]``).
+
+        Args:
+            seed: None (fresh entropy), an int ``s`` (environment ``i`` gets ``s + i``) or
+                one seed (or None) per environment.
+            options: the reset options of every environment; ``"reset_mask"`` (a bool
+                array of shape ``(num_envs,)``) resets only the marked environments.
+        """
+        self._check_open()
+        seeds = self._seeds(seed)
+        options = dict(options) if options is not None else None
+        mask = np.ones(self.num_envs, dtype=np.bool_)
+        if options is not None and "reset_mask" in options:
+            mask = np.asarray(options.pop("reset_mask"))
+            if mask.shape != (self.num_envs,) or mask.dtype != np.bool_ or not mask.any():
+                raise ValueError(
+                    f"options['reset_mask'] must be a bool array of shape ({self.num_envs},) "
+                    f"with at least one True; got {mask!r}."
+                )
+        rows = np.flatnonzero(mask).tolist()
+        infos: dict[str, Any] = {}
+        for i in rows:
+            obs, info = self._reset_one(i, seeds[i], options)
+            self._write_obs(i, obs)
+            infos = self._add_info(infos, info, i)
+        self._batch.set_models(self._models)  # the resets edited the models
+        self._autoreset_envs[mask] = False
+        self._elapsed[mask] = 0
+        self._started = True
+        return self._batched_obs(), infos
+
+    def _seeds(self, seed: Any) -> list[int | None]:
+        if seed is None:
+            return [None] * self.num_envs
+        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            seeds: list[Any] = [int(seed) + i for i in range(self.num_envs)]
+        elif isinstance(seed, (Sequence, np.ndarray)) and not isinstance(seed, str):
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(
+                    f"seed must be None, an int or a list of num_envs={self.num_envs} seeds; "
+                    f"got a list of length {len(seeds)}."
+                )
+        else:
+            raise ValueError(
+                f"seed must be None, an int >= 0 or a list of num_envs={self.num_envs} seeds; "
+                f"got {seed!r}."
+            )
+        return [None if s is None else check_int("seed", s, 0) for s in seeds]
+
+    def _reset_one(
+        self, i: int, seed: int | None, options: dict[str, Any] | None
+    ) -> tuple[Any, dict[str, Any]]:
+        env = self.envs[i]
+        self._in_batch[i] = False  # the reset replaces the batch's state
+        obs, info = env.reset(seed=seed, options=options)
+        self._load(i)
+        return obs, info
+
+    def _write_obs(self, i: int, obs: Any) -> None:
+        for (path, _, _), array in zip(self._leaves, self._obs, strict=True):
+            array[i] = _get(obs, path)
+
+    def _batched_obs(self) -> Any:
+        arrays = [a.copy() for a in self._obs] if self.copy else self._obs
+        return _nest({path: a for (path, _, _), a in zip(self._leaves, arrays, strict=True)})
+
+    def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Step every environment with its row of ``actions`` (shape ``(num_envs, 6)``).
+
+        Returns:
+            Batched observations, rewards (float64), terminations, truncations and infos,
+            as :class:`~gym_soarm.vector.SoArmVectorEnv` returns them.
+
+        Raises:
+            ValueError: actions of another shape, or not finite numbers (nothing is
+                stepped).
+        """
+        self._check_open()
+        if not self._started:
+            raise RuntimeError("call reset() before step() on the vector environment.")
+        array = self._check_actions(actions)
+        n, mode = self.num_envs, self.autoreset_mode
+        restart = np.zeros(n, dtype=np.bool_)
+        if mode is AutoresetMode.NEXT_STEP:
+            restart = self._autoreset_envs.copy()  # these reset instead of stepping
+        stepping = ~restart
+        ids = np.flatnonzero(stepping)
+        self._set_targets(array, ids)
+        diverged, reasons = self._step_physics(ids)
+        self._steps[ids] += 1
+        self._elapsed[ids] += 1
+        rewards, terminated, obs_rows, infos = self._score()
+        terminated &= stepping
+        truncated = np.zeros(n, dtype=np.bool_)
+        if self.max_episode_steps is not None:
+            truncated = stepping & (self._elapsed >= self.max_episode_steps)
+        last_obs = {i: [a[i].copy() for a in self._obs] for i in np.flatnonzero(diverged).tolist()}
+        for array_, rows in zip(self._obs, obs_rows, strict=True):
+            array_[stepping] = rows[stepping]
+        if diverged.any():
+            self._truncate_diverged(reasons, last_obs, rewards, terminated, truncated, infos)
+        ended = (terminated | truncated) & stepping
+        if mode is AutoresetMode.SAME_STEP and ended.any():
+            infos = self._reset_ended(np.flatnonzero(ended), infos)
+        for i in np.flatnonzero(restart).tolist():
+            obs, info = self._reset_one(i, None, None)
+            self._write_obs(i, obs)
+            rewards[i] = 0.0
+            self._elapsed[i] = 0
+            infos = self._add_info(infos, info, i)
+        if restart.any():
+            self._batch.set_models(self._models)
+        self._last_infos = infos
+        self._autoreset_envs = (
+            ended if mode is not AutoresetMode.SAME_STEP else np.zeros(n, np.bool_)
+        )
+        return self._batched_obs(), rewards, terminated, truncated, infos
+
+    def _check_actions(self, actions: Any) -> np.ndarray:
+        array = np.asarray(actions)
+        expected = self.action_space.shape
+        if array.shape != expected:
+            raise ValueError(
+                f"actions must have shape {expected} (one row of joint targets per "
+                f"environment); got shape {array.shape}."
+            )
+        if array.dtype.kind not in "iuf":
+            raise ValueError(
+                f"actions must be real numbers (ints or floats) of shape {expected}; got dtype "
+                f"{array.dtype}."
+            )
+        if self.autoreset_mode is AutoresetMode.DISABLED and self._autoreset_envs.any():
+            done = np.flatnonzero(self._autoreset_envs).tolist()
+            raise RuntimeError(
+                f"environments {done} ended their episodes and autoreset_mode is DISABLED: "
+                "reset them first with reset(options={'reset_mask': mask})."
+            )
+        rows = np.ones(self.num_envs, np.bool_)
+        if self.autoreset_mode is AutoresetMode.NEXT_STEP:
+            rows = ~self._autoreset_envs  # those that reset ignore their row
+        finite = np.isfinite(array.reshape(self.num_envs, -1)).all(axis=1)
+        if not finite[rows].all():
+            bad = np.flatnonzero(rows & ~finite).tolist()
+            raise ValueError(
+                f"actions must be finite; the rows of environments {bad} hold NaN or inf. "
+                "Nothing was stepped; check the policy's output before stepping."
+            )
+        return array.astype(np.float64)
+
+    def _set_targets(self, actions: np.ndarray, ids: np.ndarray) -> None:
+        """The servo targets of the stepping environments, into the batch's controls."""
+        delays = any(env._delay_steps or env._servo is not None for env in self.envs)
+        if self._control is not None and not delays:
+            targets = self._control.targets(actions[ids], self._commanded[ids])
+            self._commanded[ids] = targets
+        else:
+            targets = np.empty((len(ids), len(constants.JOINT_NAMES)))
+            for k, i in enumerate(ids.tolist()):
+                env = self.envs[i]
+                env._commanded = self._commanded[i].copy()
+                targets[k] = env._servo_target(actions[i].copy())
+                self._commanded[i] = env._commanded
+        ctrl = self._ctrl
+        for column, actuator in enumerate(self._actuators.tolist()):
+            ctrl[ids, actuator] = targets[:, column]
+
+    def _step_physics(self, ids: np.ndarray) -> tuple[np.ndarray, dict[int, str]]:
+        """Step the simulations ``ids`` in one call; which diverged, and why (as
+        :meth:`SoArmEnv.step <gym_soarm.env.SoArmEnv.step>` finds it)."""
+        n = self.num_envs
+        if len(ids) == 0:
+            return np.zeros(n, dtype=np.bool_), {}
+        batch = self._batch
+        before = batch.warning[:, :, 0].copy()
+        reasons: dict[int, str] = {}
+        self._in_batch[ids] = True
+        try:
+            batch.step(None if len(ids) == n else ids, constants.N_SUBSTEPS, _STAGE_VEL)
+        except mujoco.batch.SimulationError as exc:
+            for i in exc.ids.tolist():
+                reasons[i] = f"MuJoCo raised: {batch.error(i)}"
+        self._sim.clear()
+        after = batch.warning[:, :, 0]
+        for i in np.flatnonzero((after > before).any(axis=1)).tolist():
+            names = [
+                w for w, old, new in zip(_WARNINGS, before[i], after[i], strict=False) if new > old
+            ]
+            reasons.setdefault(i, f"MuJoCo warned: {', '.join(names)}")
+        sim = self._sim
+        unsound = ~np.asarray(sim.state_is_finite())
+        far = np.zeros(n)
+        for name in sim.index.objects:
+            far = np.maximum(far, np.abs(sim.object_position(name)).max(axis=1))
+        angles = sim.joint_angles()
+        turned = (np.abs(angles) > math.pi).any(axis=1)
+        for i in np.flatnonzero(unsound | (far > constants.POSITION_BOUND_M) | turned).tolist():
+            if unsound[i]:
+                reason = "the simulation state holds NaN or inf"
+            elif far[i] > constants.POSITION_BOUND_M:
+                reason = f"an object was thrown {far[i]:.2f} m from the table"
+            else:
+                joint = int(np.argmax(np.abs(angles[i])))
+                reason = (
+                    f"joint {constants.JOINT_NAMES[joint]!r} turned to {angles[i, joint]:.2f} rad"
+                )
+            reasons.setdefault(i, reason)
+        stepped = np.zeros(n, dtype=np.bool_)
+        stepped[ids] = True
+        diverged = np.zeros(n, dtype=np.bool_)
+        diverged[list(reasons)] = True
+        return diverged & stepped, reasons
+
+    def _score(self) -> tuple[np.ndarray, np.ndarray, list[np.ndarray], dict[str, Any]]:
+        """Rewards, terminations, observation rows and infos of the whole batch."""
+        task, sim = self._task, self._sim
+        evaluation = task.evaluate(sim)
+        success = np.asarray(evaluation["success"], dtype=np.bool_)
+        terms = task.batch_reward_terms(evaluation)
+        first = self.envs[0]
+        if first.reward_type == "sparse":
+            rewards = success.astype(np.float64)
+        else:
+            limit = (
+                first.spec.max_episode_steps
+                if first.spec is not None and first.spec.max_episode_steps
+                else first.task_spec.max_episode_steps
+            )
+            bonus = 1.0 + np.maximum(limit - self._steps, 0)
+            rewards = np.where(
+                success, bonus, np.asarray(task.weights.total(terms), dtype=np.float64)
+            )
+        obs_rows = self._observations()
+        infos = self._infos(sim, evaluation, success, terms)
+        return rewards, success.copy(), obs_rows, infos
+
+    def _observations(self) -> list[np.ndarray]:
+        first = self.envs[0]
+        if first.obs_type == "state":
+            return [np.asarray(first._state_observation.batch(self._sim, self._commanded))]
+        if first.obs_type == "environment_state_agent_pos":
+            angles = self._sim.joint_angles()
+            values = {
+                ("agent_pos",): first.joint_units.from_radians(angles),
+                ("environment_state",): np.asarray(self._task.batch_state(self._sim)),
+            }
+            return [values[path].astype(dtype) for path, _, dtype in self._leaves]
+        # Pixels: each environment renders its own copy of the simulation.
+        rows = [np.zeros_like(a) for a in self._obs]
+        for i in range(self.num_envs):
+            env = self._unload(i)
+            obs = env._observation()
+            for (path, _, _), array in zip(self._leaves, rows, strict=True):
+                array[i] = _get(obs, path)
+        return rows
+
+    def _infos(
+        self, sim: SimArrays, evaluation: dict[str, Any], success: np.ndarray, terms: dict[str, Any]
+    ) -> dict[str, Any]:
+        n = self.num_envs
+        ones = np.ones(n, dtype=np.bool_)
+        infos: dict[str, Any] = {"is_success": success, "_is_success": ones}
+        for key, value in self._task.compute_info(sim, evaluation).items():
+            infos[key] = _column(value, n)
+            infos[f"_{key}"] = ones
+        infos["gripper_pos"] = np.array(sim.gripper_position())
+        infos["_gripper_pos"] = ones
+        reward_terms: dict[str, Any] = {}
+        for name, value in terms.items():
+            reward_terms[name] = np.asarray(value, dtype=np.float64)
+            reward_terms[f"_{name}"] = ones
+        infos["reward_terms"] = reward_terms
+        infos["_reward_terms"] = ones
+        infos["task"] = self._instructions.copy()
+        infos["_task"] = ones
+        infos["physics_unstable"] = np.zeros(n, dtype=np.bool_)
+        infos["_physics_unstable"] = ones
+        control_keys = self.envs[0].control.info()
+        if control_keys:  # the end-effector modes: each environment converted its own action
+            rows = [env.control.info() for env in self.envs]
+            for key in control_keys:
+                infos[key] = _column([row[key] for row in rows], n)
+                infos[f"_{key}"] = ones
+        return infos
+
+    def _truncate_diverged(
+        self,
+        reasons: dict[int, str],
+        last_obs: dict[int, list[np.ndarray]],
+        rewards: np.ndarray,
+        terminated: np.ndarray,
+        truncated: np.ndarray,
+        infos: dict[str, Any],
+    ) -> None:
+        """End the diverged episodes as a single environment does: the last sound
+        observation and info, reward 0 and every reward term 0, truncated."""
+        for i, rows in last_obs.items():
+            warnings.warn(
+                f"The physics of environment {i} diverged ({reasons[i]}); its episode is "
+                "truncated (the other environments go on).",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+            rewards[i] = 0.0
+            terminated[i] = False
+            truncated[i] = True
+            for array, row in zip(self._obs, rows, strict=True):
+                array[i] = row
+            previous = self._last_infos
+            for key, value in infos.items():
+                if key.startswith("_") or key not in previous or isinstance(value, dict):
+                    continue
+                value[i] = previous[key][i]
+            infos["is_success"][i] = False
+            infos["physics_unstable"][i] = True
+            for name, value in infos["reward_terms"].items():
+                if not name.startswith("_"):
+                    value[i] = 0.0
+
+    def _reset_ended(self, ended: np.ndarray, infos: dict[str, Any]) -> dict[str, Any]:
+        """``SAME_STEP``: keep the ended episodes' last observations and infos, reset them."""
+        finals = {}
+        for i in ended.tolist():
+            final_obs = _nest(
+                {path: a[i].copy() for (path, _, _), a in zip(self._leaves, self._obs, strict=True)}
+            )
+            finals[i] = (
+                final_obs,
+                {k: _row(v, i) for k, v in infos.items() if not k.startswith("_")},
+            )
+        for i in ended.tolist():
+            obs, info = self._reset_one(i, None, None)
+            self._write_obs(i, obs)
+            self._elapsed[i] = 0
+            infos = self._add_info(infos, info, i)
+        self._batch.set_models(self._models)
+        for i in sorted(finals):
+            infos = self._add_info(
+                infos, {"final_obs": finals[i][0], "final_info": finals[i][1]}, i
+            )
+        return infos
+
+    # --- the rest of the VectorEnv API -----------------------------------------------------
+    def _check_open(self) -> None:
+        if self.closed:
+            raise RuntimeError(
+                "this vector environment was closed; create a new one with gym.make_vec(...)."
+            )
+
+    def render(self) -> tuple[Any, ...] | None:
+        """Each environment's ``render()``."""
+        if self.render_mode is None:
+            return None
+        return tuple(self.call("render"))
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
+        """Call ``name`` (a method, or read an attribute) of every environment.
+
+        ``_max_episode_steps`` answers the step limit, as a ``TimeLimit``-wrapped env
+        made by ``gym.make`` does.
+        """
+        if name == TIME_LIMIT_ATTRIBUTE:
+            return self.get_attr(name)
+        return tuple(self._call(i, name, args, kwargs) for i in range(self.num_envs))
+
+    def call_some(
+        self, indices: Sequence[int], name: str, *args: Any, **kwargs: Any
+    ) -> dict[int, Any]:
+        """:meth:`call` on the environments of ``indices`` only; their results by index."""
+        wanted = sorted({check_int("index", i, 0, self.num_envs - 1) for i in indices})
+        return {i: self._call(i, name, args, kwargs) for i in wanted}
+
+    def _call(self, i: int, name: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
+        self._check_open()
+        env = self._unload(i)
+        attribute = getattr(env, name)
+        result = attribute(*args, **kwargs) if callable(attribute) else attribute
+        if name in ("reset",):
+            self._load(i)
+            self._batch.set_models(self._models)
+        return result
+
+    def get_attr(self, name: str) -> tuple[Any, ...]:
+        """The attribute ``name`` of every environment, in order."""
+        if name == TIME_LIMIT_ATTRIBUTE:
+            return (self.max_episode_steps,) * self.num_envs
+        self._check_open()
+        return tuple(getattr(self._unload(i), name) for i in range(self.num_envs))
+
+    def set_attr(self, name: str, values: list[Any] | tuple[Any, ...] | Any) -> None:
+        """Set ``name`` on every environment: one value each, or the same value for all."""
+        if not isinstance(values, (list, tuple)):
+            values = [values] * self.num_envs
+        if len(values) != self.num_envs:
+            raise ValueError(
+                f"values must hold one value per environment (num_envs={self.num_envs}); "
+                f"got {len(values)}."
+            )
+        for i, value in enumerate(values):
+            setattr(self._unload(i), name, copy.copy(value))
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Close every environment and release the batch's threads."""
+        for env in self.envs:
+            env.close()
+        self._batch = None
+
+    def close(self, **kwargs: Any) -> None:
+        """Close all environments; idempotent."""
+        if self.closed:
+            return
+        self.closed = True
+        self.close_extras(**kwargs)
+
+
+def wants_batched(env_kwargs: dict[str, Any]) -> bool:
+    """Whether ``vector_env="auto"`` batches these environments: state observations."""
+    obs_type = env_kwargs.get("obs_type")
+    settings = env_kwargs.get("settings")
+    if obs_type is None and settings is not None:
+        obs_type = getattr(settings, "obs_type", None)
+    return obs_type in STATE_OBS_TYPES
+
+
+VECTOR_ENVS: tuple[str, ...] = ("auto", "batched", "processes")
+"""Values of ``vector_env``: how ``gym.make_vec(..., vectorization_mode="vector_entry_point")``
+steps the environments."""
+
+_PROCESS_KEYWORDS = ("num_processes", "start_method")
+
+
+def make_vector_env(num_envs: int, vector_env: str = "auto", **kwargs: Any) -> VectorEnv:
+    """The native vector env of ``num_envs`` environments (the ids' vector entry point).
+
+    Args:
+        num_envs: number of environments.
+        vector_env: ``"batched"`` (:class:`BatchedVectorEnv`: one ``mujoco.batch``, the
+            tasks scored as arrays), ``"processes"``
+            (:class:`~gym_soarm.vector.SoArmVectorEnv`: worker processes, each stepping
+            its block of environments) or ``"auto"`` (default): batched for state
+            observations, processes for pixels or where ``num_processes`` or
+            ``start_method`` is given.
+        **kwargs: the vector env's own arguments and ``gym.make``'s keywords.
+
+    Raises:
+        ValueError: an unknown ``vector_env``, or process arguments for the batched env.
+    """
+    from gym_soarm.validation import check_choice
+    from gym_soarm.vector import SoArmVectorEnv
+
+    check_choice("vector_env", vector_env, VECTOR_ENVS)
+    process_args = [k for k in _PROCESS_KEYWORDS if kwargs.get(k) is not None]
+    if vector_env == "auto":
+        vector_env = "batched" if wants_batched(kwargs) and not process_args else "processes"
+    if vector_env == "processes":
+        kwargs.pop("num_threads", None)
+        return SoArmVectorEnv(num_envs, **kwargs)
+    if process_args:
+        raise ValueError(
+            f"{' and '.join(process_args)} apply to vector_env='processes'; the batched env "
+            "runs in one process (its threads: num_threads). Remove them or pass "
+            "vector_env='processes'."
+        )
+    for key in _PROCESS_KEYWORDS:
+        kwargs.pop(key, None)
+    return BatchedVectorEnv(num_envs, **kwargs)
+
+
+__all__ = ["VECTOR_ENVS", "BatchedVectorEnv", "make_vector_env", "wants_batched"]
