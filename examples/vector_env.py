@@ -1,11 +1,15 @@
 """Step many SO-101 simulations at once in gym_soarm's native vector env.
 
-    python examples/vector_env.py --num-envs 8 --steps 200
+    python examples/vector_env.py --num-envs 64 --steps 200
+    python examples/vector_env.py --num-envs 8 --vector-env processes
 
-The environments run in one process per CPU (this one steps a block of them too), with
-observations, rewards and infos in shared memory. The script steps them with random
-actions, counts the episodes that end (the vector env starts new ones by itself) and
-prints the aggregate steps per second next to one plain ``gym.make`` environment.
+With state observations the environments are one batch by default: every simulation
+stepped in one ``mujoco.batch`` call on a thread per CPU, the task scored as arrays over
+the batch. ``--vector-env processes`` runs them in one process per CPU instead (this one
+steps a block of them too), with observations, rewards and infos in shared memory. The
+script steps them with random actions, counts the episodes that end (the vector env
+starts new ones by itself) and prints the aggregate steps per second next to one plain
+``gym.make`` environment.
 """
 
 from __future__ import annotations
@@ -43,6 +47,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--num-envs", type=int, default=8, help="environments (default 8)")
     parser.add_argument("--steps", type=int, default=200, help="vector steps (default 200)")
     parser.add_argument("--seed", type=int, default=0, help="environment i is seeded seed + i")
+    parser.add_argument(
+        "--vector-env",
+        default="auto",
+        choices=("auto", "batched", "processes"),
+        help="one mujoco.batch (batched; auto for state) or worker processes",
+    )
     args = parser.parse_args(argv)
     if args.num_envs < 1 or args.steps < 1:
         parser.error(f"--num-envs and --steps must be >= 1; got {args.num_envs}, {args.steps}")
@@ -52,13 +62,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         num_envs=args.num_envs,
         vectorization_mode="vector_entry_point",
         obs_type="state",
+        vector_env=args.vector_env,
     )
     try:
         inner = envs.unwrapped
-        print(
-            f"{args.num_envs} x {args.task} in {inner.num_processes} processes "
-            f"(this one and workers {list(inner.worker_pids)})"
-        )
+        if hasattr(inner, "worker_pids"):
+            print(
+                f"{args.num_envs} x {args.task} in {inner.num_processes} processes "
+                f"(this one and workers {list(inner.worker_pids)})"
+            )
+        else:
+            print(
+                f"{args.num_envs} x {args.task} in one mujoco.batch on {inner.num_threads} threads"
+            )
         obs, _ = envs.reset(seed=args.seed)
         envs.action_space.seed(args.seed)
         ended = 0

@@ -388,7 +388,7 @@ class BatchedVectorEnv(VectorEnv):
         if len(ids) == 0:
             return np.zeros(n, dtype=np.bool_), {}
         batch = self._batch
-        before = batch.warning[:, :, 0].copy()
+        before = batch.warning[:, :, 1].copy()  # (lastinfo, number) per warning
         reasons: dict[int, str] = {}
         self._in_batch[ids] = True
         try:
@@ -397,7 +397,7 @@ class BatchedVectorEnv(VectorEnv):
             for i in exc.ids.tolist():
                 reasons[i] = f"MuJoCo raised: {batch.error(i)}"
         self._sim.clear()
-        after = batch.warning[:, :, 0]
+        after = batch.warning[:, :, 1]
         for i in np.flatnonzero((after > before).any(axis=1)).tolist():
             names = [
                 w for w, old, new in zip(_WARNINGS, before[i], after[i], strict=False) if new > old

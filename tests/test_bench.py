@@ -129,8 +129,12 @@ def test_vector_scaling_compares_the_three_vector_envs_and_is_plotted(tmp_path):
         ["--configs", "", "--vector-scaling", "1,2", "--vector-obs", "state,front_wrist",
          "--image-size", "48x64", "--seconds", "0.1", "--repeats", "2", "--json", str(out)]
     )  # fmt: skip
-    assert "| num_envs | native steps/s (speedup) | async steps/s (speedup) |" in proc.stdout
+    assert (
+        "| num_envs | batched steps/s (speedup) | native steps/s (speedup) | async steps/s "
+        "(speedup) |" in proc.stdout
+    )
     assert "target native_vector_state_" in proc.stdout
+    assert "target batched_vector_state_2 speedup >= 1.8" in proc.stdout
 
     report = json.loads(out.read_text())
     assert report["configs"] == [] and report["recording"] is None
@@ -139,10 +143,11 @@ def test_vector_scaling_compares_the_three_vector_envs_and_is_plotted(tmp_path):
     assert (state["obs"], state["size"]) == ("state", None)
     assert (pixels["obs"], pixels["size"]) == ("front_wrist", [48, 64])
     for scaling in (state, pixels):
-        assert scaling["modes"] == ["native", "async", "sync"]
+        modes = ["batched", "native", "async", "sync"]
+        assert scaling["modes"] == modes
         assert scaling["single_steps_per_s"] > 0
         assert [(r["mode"], r["num_envs"]) for r in scaling["rows"]] == [
-            (mode, n) for n in (1, 2) for mode in ("native", "async", "sync")
+            (mode, n) for n in (1, 2) for mode in modes
         ]
         for row in scaling["rows"]:
             _check_spread(row["steps_per_s"], 2)
@@ -150,7 +155,14 @@ def test_vector_scaling_compares_the_three_vector_envs_and_is_plotted(tmp_path):
             # The ceiling of the same environments on free-running processes, per round.
             assert row["ceiling_speedup"] > 0
             assert row["ratio_to_ceiling"] > 0
-    state_target, pixels_target = [t for t in report["targets"] if t["figure"] == "speedup"]
+            # The bare mujoco.batch physics of the same simulations: the batched env's ceiling.
+            assert row["batch_physics_steps_per_s"] > 0 and row["ratio_to_physics"] > 0
+            assert (row["single_to_physics"] is not None) == (row["num_envs"] == 1)
+    state_target, pixels_target, batched_target = [
+        t for t in report["targets"] if t["figure"] == "speedup"
+    ]
+    assert batched_target["config"] == "batched_vector_state_2"
+    assert batched_target["bound"] == 1.8
     assert state_target["config"] == "native_vector_state_2" and state_target["bound"] == 1.7
     assert pixels_target["config"] == "native_vector_front_wrist_2"
     assert pixels_target["bound"] == 1.8

@@ -1,9 +1,10 @@
-"""Stable-Baselines3's view of gym_soarm's native vector env (worker processes).
+"""Stable-Baselines3's view of gym_soarm's native vector env.
 
 ``python -m gym_soarm.train`` steps its environments through :class:`NativeVecEnv` when a
-recipe says ``vec_env="native"`` (the default): the environments of
-:class:`gym_soarm.vector.SoArmVectorEnv` in one process per CPU, seen through SB3's
-``VecEnv`` interface. It gives what SB3's ``DummyVecEnv`` over the same ``gym.make``
+recipe says ``vec_env="native"`` (the default): for state observations the
+:class:`gym_soarm.batched.BatchedVectorEnv` (every simulation in one ``mujoco.batch``
+call, the task scored as arrays), for pixels the worker processes of
+:class:`gym_soarm.vector.SoArmVectorEnv`, seen through SB3's ``VecEnv`` interface. It gives what SB3's ``DummyVecEnv`` over the same ``gym.make``
 environments gives, bit for bit: the same seeds (environment ``i`` gets ``seed + i``),
 observations, float32 rewards, dones, ``terminal_observation`` and
 ``TimeLimit.truncated``; of the task's own info only ``is_success`` is passed on (what
@@ -21,8 +22,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
+from gym_soarm.batched import make_vector_env
 from gym_soarm.tasks import get_task
-from gym_soarm.vector import SoArmVectorEnv
 
 
 def _one(info: dict[str, Any], i: int) -> dict[str, Any]:
@@ -36,13 +37,16 @@ def _one(info: dict[str, Any], i: int) -> dict[str, Any]:
 
 
 class NativeVecEnv(VecEnv):
-    """``n_envs`` environments of ``task`` in a :class:`~gym_soarm.vector.SoArmVectorEnv`.
+    """``n_envs`` environments of ``task`` in gym_soarm's native vector env.
 
     Args:
         task: a registered task's name.
         env_kwargs: the keywords of ``gym.make`` for each environment.
         n_envs: environments stepped together.
-        num_processes: processes that step them (default: one per CPU).
+        num_processes: worker processes that step them (``vector_env="processes"``;
+            default: one per CPU).
+        vector_env: ``"auto"`` (default: batched for state observations), ``"batched"``
+            or ``"processes"`` (see :func:`gym_soarm.batched.make_vector_env`).
     """
 
     def __init__(
@@ -51,10 +55,12 @@ class NativeVecEnv(VecEnv):
         env_kwargs: dict[str, Any],
         n_envs: int,
         num_processes: int | None = None,
+        vector_env: str = "auto",
     ) -> None:
         spec = get_task(task)
-        self.vector = SoArmVectorEnv(
+        self.vector = make_vector_env(
             n_envs,
+            vector_env=vector_env,
             max_episode_steps=spec.max_episode_steps,
             autoreset_mode=AutoresetMode.SAME_STEP,
             num_processes=num_processes,
