@@ -69,11 +69,9 @@ def _row(value: Any, i: int) -> Any:
 def _column(values: Any, n: int) -> np.ndarray:
     """One info entry for the batch as ``SyncVectorEnv`` batches it: an array."""
     if isinstance(values, list):
-        first = values[0]
-        if all(isinstance(v, bool) for v in values):
-            return np.array(values, dtype=np.bool_)
-        if all(type(v) is int for v in values) or all(type(v) is float for v in values):
-            return np.array(values, dtype=type(first))
+        kinds = set(map(type, values))
+        if len(kinds) == 1 and kinds <= {bool, int, float}:
+            return np.array(values, dtype=kinds.pop())
         out = np.empty(n, dtype=object)
         out[:] = values
         return out
@@ -162,6 +160,7 @@ class BatchedVectorEnv(VectorEnv):
         self._steps = np.zeros(num_envs, dtype=np.int64)  # this episode's, as the env's
         self._elapsed = np.zeros(num_envs, dtype=np.int64)  # the time limit's count
         self._in_batch = np.zeros(num_envs, dtype=np.bool_)  # env i's own data is stale
+        self._own_control = np.zeros(num_envs, dtype=np.bool_)
         self._autoreset_envs = np.zeros(num_envs, dtype=np.bool_)
         self._last_infos: dict[str, Any] = {}
         self._control = self._batch_control(first)
@@ -188,6 +187,9 @@ class BatchedVectorEnv(VectorEnv):
         for name, values in env.task_logic.episode.items():
             self._episode[name][i] = values[0]
         self._commanded[i] = env.commanded_targets
+        # A servo delay (drawn at each reset with physics randomisation) or the servo
+        # model: this environment converts its own actions.
+        self._own_control[i] = bool(env._delay_steps) or env._servo is not None
         self._steps[i] = env._step_count
         self._in_batch[i] = False
         self._instructions[i] = env.task_description
@@ -366,8 +368,7 @@ class BatchedVectorEnv(VectorEnv):
 
     def _set_targets(self, actions: np.ndarray, ids: np.ndarray) -> None:
         """The servo targets of the stepping environments, into the batch's controls."""
-        delays = any(env._delay_steps or env._servo is not None for env in self.envs)
-        if self._control is not None and not delays:
+        if self._control is not None and not self._own_control.any():
             targets = self._control.targets(actions[ids], self._commanded[ids])
             self._commanded[ids] = targets
         else:
