@@ -224,11 +224,15 @@ def test_ctrl_c_keeps_the_last_checkpoint_and_curve(tmp_path):
     TrainedPolicy(out)  # the kept checkpoint loads
 
 
-def test_the_sb3_view_of_the_native_vector_env_honours_indices():
+@pytest.mark.parametrize("vector_env", ["batched", "processes"])
+def test_the_sb3_view_of_the_native_vector_env_honours_indices(vector_env):
     from gym_soarm.rl.native import NativeVecEnv
 
     env_kwargs = recipe("ppo", "ReachTarget-v0")["env"]
-    venv = NativeVecEnv("ReachTarget-v0", env_kwargs, 3, num_processes=2)
+    processes = 2 if vector_env == "processes" else None
+    venv = NativeVecEnv(
+        "ReachTarget-v0", env_kwargs, 3, num_processes=processes, vector_env=vector_env
+    )
     try:
         venv.seed(5)
         obs = venv.reset()
