@@ -62,7 +62,7 @@ def test_a_suite_gives_one_vector_env_per_task_in_its_group():
 @pytest.mark.parametrize(
     ("obs_type", "n_envs", "use_async_envs", "expected"),
     [
-        ("environment_state_agent_pos", 2, True, "SoArmVectorEnv"),
+        ("environment_state_agent_pos", 2, True, "BatchedVectorEnv"),
         ("environment_state_agent_pos", 1, True, "SyncVectorEnv"),
         ("pixels_agent_pos", 2, True, "SoArmVectorEnv"),
         ("pixels_agent_pos", 2, False, "SoArmVectorEnv"),
