@@ -728,14 +728,14 @@ class SoArmEnv(gym.Env):
         task = self._task
         sim = task.arrays(self._physics)
         evaluation = task.evaluate(sim)
-        success = bool(evaluation["success"][0])
+        success = bool(evaluation["success"])
         terms = task.batch_reward_terms(evaluation)
         if self.reward_type == "sparse":
             reward = float(success)
         elif success:
             reward = self._success_reward()
         else:
-            reward = float(task.weights.total(terms)[0])
+            reward = float(task.weights.total(terms))
         obs = self._observation(sim)
         info = self._info(sim, evaluation, terms)
         if self._viewer is not None:
@@ -890,12 +890,12 @@ class SoArmEnv(gym.Env):
         physics = self._physics
         if self.obs_type == "state":
             sim = self._task.arrays(physics) if sim is None else sim
-            obs = self._state_observation.batch(sim, self._commanded[None])[0]
+            obs = self._state_observation.batch(sim, self._commanded)
         elif self.obs_type == "environment_state_agent_pos":
             sim = self._task.arrays(physics) if sim is None else sim
             obs = {
                 "agent_pos": self._units.from_radians(physics.joint_angles()),
-                "environment_state": np.asarray(self._task.batch_state(sim))[0],
+                "environment_state": np.asarray(self._task.batch_state(sim)),
             }
         elif self.image_modalities != ("rgb",):
             obs = self._modality_observation()
@@ -944,7 +944,7 @@ class SoArmEnv(gym.Env):
         """The info of a sound state (a diverged step builds its own from the last one).
 
         ``sim``, ``evaluation`` and ``terms``: the step's arrays, task evaluation and
-        reward terms (a batch of one); a reset evaluates the task here, once.
+        reward terms (one environment, unbatched); a reset evaluates the task here, once.
         """
         physics = self._physics
         task = self._task
@@ -956,10 +956,10 @@ class SoArmEnv(gym.Env):
             terms = task.batch_reward_terms(evaluation)
         task_info = task.compute_info(sim, evaluation)
         self._last_info = {
-            "is_success": bool(evaluation["success"][0]),
+            "is_success": bool(evaluation["success"]),
             **{key: item(value) for key, value in task_info.items()},
             "gripper_pos": physics.gripper_position(),
-            "reward_terms": {name: float(value[0]) for name, value in terms.items()},
+            "reward_terms": {name: float(value) for name, value in terms.items()},
             "task": self.task_description,
             "physics_unstable": False,
             **self._control.info(),

@@ -65,10 +65,10 @@ def test_each_state_field_reads_its_own_values(task):
         obs, _ = env.reset(seed=1)
         base = env.unwrapped
         logic = base.task_logic
-        sim = logic.arrays(base.physics)  # the environment as a batch of one
+        sim = logic.arrays(base.physics)  # the environment's own arrays, unbatched
         parts = [np.asarray(f.read(sim, logic), dtype=np.float64) for f in logic.state_fields]
-        assert [p.shape for p in parts] == [(1, f.size) for f in logic.state_fields]
-        np.testing.assert_array_equal(np.concatenate(parts, axis=1)[0], obs["environment_state"])
+        assert [p.shape for p in parts] == [(f.size,) for f in logic.state_fields]
+        np.testing.assert_array_equal(np.concatenate(parts), obs["environment_state"])
     finally:
         env.close()
 

@@ -4,9 +4,11 @@ A task's evaluation, reward terms, success, info and ``state`` observation are f
 of a :class:`SimArrays` (:mod:`gym_soarm.tasks.base`): the positions, velocities, sites
 and contact sensors of ``n`` simulations of one scene, every accessor answering with a
 leading batch axis (``object_position("cube")`` is ``(n, 3)``, ``grasped("cube")`` is
-``(n,)`` bool). One environment is a batch of one (:meth:`SimArrays.of_physics`, views
-of its own ``MjData``); the batched vector env binds the same fields of all its
-simulations at once (``mujoco.batch``).
+``(n,)`` bool; indexing is always along the last axes, ``[..., k]``). One environment is
+scored on its own ``MjData``'s arrays without the batch axis (:meth:`SimArrays.of_physics`):
+the same code then answers NumPy scalars and small vectors, with :data:`SCALARS` as its
+namespace, which spares it NumPy's per-call cost on arrays of one. The batched vector
+env binds the same fields of all its simulations at once (``mujoco.batch``).
 
 The arrays may be NumPy arrays or any array-API library's (torch tensors: the same task
 code runs on them, :func:`namespace`), so a GPU physics backend only has to hand over
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -41,11 +44,83 @@ ARRAY_FIELDS: tuple[str, ...] = ("qpos", "qvel", "qacc", "site_xpos", "geom_xpos
 _NUMPY_IS_STANDARD = hasattr(np, "concat") and hasattr(np, "atan2")
 
 
+def _is_array(value: Any) -> bool:
+    return isinstance(value, np.ndarray) and value.ndim > 0
+
+
+class _Scalars:
+    """The array-API functions the tasks use, for one environment's unbatched values.
+
+    One environment is scored on its own simulation's arrays without a batch axis, so its
+    flags and distances are NumPy scalars; these functions answer for them with Python's
+    scalar operations, which cost a fraction of a NumPy call, and hand arrays (an
+    object's position, ``(3,)``) to NumPy. Results equal NumPy's bit for bit: the
+    transcendental functions are NumPy's own.
+    """
+
+    float32 = np.float32
+    float64 = np.float64
+    int64 = np.int64
+
+    @staticmethod
+    def where(condition: Any, x1: Any, x2: Any) -> Any:
+        if _is_array(condition):
+            return np.where(condition, x1, x2)
+        return x1 if condition else x2
+
+    @staticmethod
+    def maximum(x1: Any, x2: Any) -> Any:
+        if _is_array(x1) or _is_array(x2):
+            return np.maximum(x1, x2)
+        return np.float64(x2) if x2 > x1 else np.float64(x1)
+
+    @staticmethod
+    def minimum(x1: Any, x2: Any) -> Any:
+        if _is_array(x1) or _is_array(x2):
+            return np.minimum(x1, x2)
+        return np.float64(x2) if x2 < x1 else np.float64(x1)
+
+    @staticmethod
+    def abs(x: Any) -> Any:
+        return abs(x)
+
+    @staticmethod
+    def sqrt(x: Any) -> Any:
+        return np.sqrt(x) if _is_array(x) else np.float64(math.sqrt(x))
+
+    exp = staticmethod(np.exp)
+    acos = staticmethod(np.arccos)
+    atan2 = staticmethod(np.arctan2)
+    isfinite = staticmethod(np.isfinite)
+    zeros_like = staticmethod(np.zeros_like)
+    ones_like = staticmethod(np.ones_like)
+    full_like = staticmethod(np.full_like)
+    stack = staticmethod(np.stack)
+    concat = staticmethod(np.concatenate)
+    sum = staticmethod(np.sum)
+    all = staticmethod(np.all)
+    any = staticmethod(np.any)
+
+    @staticmethod
+    def astype(x: Any, dtype: Any) -> Any:
+        if _is_array(x):
+            return x.astype(dtype)
+        return np.dtype(dtype).type(x)
+
+
+SCALARS = _Scalars()
+"""The namespace of one environment's unbatched values (:class:`_Scalars`)."""
+
+
 def namespace(*arrays: Array) -> Any:
     """The array-API namespace of ``arrays``: NumPy itself for NumPy arrays (2.x speaks
-    the standard), else ``array_api_compat``'s (torch ...)."""
+    the standard), :data:`SCALARS` for one environment's NumPy scalars, else
+    ``array_api_compat``'s (torch ...)."""
+    first = arrays[0]
+    if isinstance(first, (np.generic, float, int)):
+        return SCALARS
     numpy_only = len(arrays) == 1 or all(type(a) is np.ndarray for a in arrays)
-    if _NUMPY_IS_STANDARD and type(arrays[0]) is np.ndarray and numpy_only:
+    if _NUMPY_IS_STANDARD and type(first) is np.ndarray and numpy_only:
         return np
     return array_namespace(*arrays)
 
@@ -175,7 +250,7 @@ class SimArrays:
         self.geom_xpos = arrays["geom_xpos"]
         self.sensordata = arrays["sensordata"]
         self.episode: dict[str, Array] = {} if episode is None else episode
-        self.xp = namespace(self.qpos)
+        self.xp = SCALARS if self.qpos.ndim == 1 else namespace(self.qpos)
         self._cache: dict[tuple[Any, ...], Any] = {}
 
     def clear(self) -> None:
@@ -186,38 +261,44 @@ class SimArrays:
     def of_physics(
         cls, physics: SoArmPhysics, episode: dict[str, Array] | None = None
     ) -> SimArrays:
-        """One environment's simulation as a batch of one: live views of its ``MjData``."""
-        return cls(physics.sim_index, physics.batch_views, episode)
+        """One environment's simulation, unbatched: live views of its ``MjData``.
+
+        Every accessor answers without the batch axis (``object_position`` is ``(3,)``,
+        ``grasped`` a NumPy bool), and :attr:`xp` is :data:`SCALARS`. ``episode``: the
+        task's values, each ``(1, ...)`` as the task keeps them (viewed without the axis).
+        """
+        values = {} if episode is None else {k: v.reshape(v.shape[1:]) for k, v in episode.items()}
+        return cls(physics.sim_index, physics.array_views, values)
 
     @property
     def n(self) -> int:
-        """How many simulations."""
-        return int(self.qpos.shape[0])
+        """How many simulations (1 for one environment's unbatched arrays)."""
+        return 1 if self.qpos.ndim == 1 else int(self.qpos.shape[0])
 
     # --- the robot ---------------------------------------------------------------------
     @_cached
     def joint_angles(self) -> Array:
         """``(n, 6)``: the joint positions (rad), gripper last."""
-        return self.qpos[:, self.index.arm_qpos_index]
+        return self.qpos[..., self.index.arm_qpos_index]
 
     @_cached
     def joint_velocities(self) -> Array:
         """``(n, 6)``: the joint velocities (rad/s)."""
-        return self.qvel[:, self.index.arm_dof_index]
+        return self.qvel[..., self.index.arm_dof_index]
 
     def grasp_center(self) -> Array:
         """``(n, 3)``: where a held object's centre sits, between the jaws (m)."""
-        return self.site_xpos[:, self.index.grasp_site, :]
+        return self.site_xpos[..., self.index.grasp_site, :]
 
     def gripper_position(self) -> Array:
         """``(n, 3)``: the ``gripperframe`` site (m)."""
-        return self.site_xpos[:, self.index.gripper_site, :]
+        return self.site_xpos[..., self.index.gripper_site, :]
 
     @_cached
     def jaw_pads_center(self) -> Array:
         """``(n, 3)``: midway between the two jaw pads (the centre of closed jaws, m)."""
         fixed, moving = self.index.pads
-        return (self.geom_xpos[:, fixed, :] + self.geom_xpos[:, moving, :]) / 2
+        return (self.geom_xpos[..., fixed, :] + self.geom_xpos[..., moving, :]) / 2
 
     # --- objects -----------------------------------------------------------------------
     def _object(self, name: str) -> _Object:
@@ -231,17 +312,17 @@ class SimArrays:
     def object_position(self, name: str) -> Array:
         """``(n, 3)``: the centre of object ``name`` (m)."""
         q = self._object(name).qpos
-        return self.qpos[:, q : q + 3]
+        return self.qpos[..., q : q + 3]
 
     def object_quaternion(self, name: str) -> Array:
         """``(n, 4)``: the orientation of object ``name`` (w, x, y, z)."""
         q = self._object(name).qpos
-        return self.qpos[:, q + 3 : q + 7]
+        return self.qpos[..., q + 3 : q + 7]
 
     def object_velocity(self, name: str) -> Array:
         """``(n, 3)``: the linear velocity of object ``name`` (m/s)."""
         v = self._object(name).dof
-        return self.qvel[:, v : v + 3]
+        return self.qvel[..., v : v + 3]
 
     @_cached
     def object_speed(self, name: str) -> Array:
@@ -251,7 +332,7 @@ class SimArrays:
     def object_yaw(self, name: str) -> Array:
         """``(n,)``: the yaw (rad) of object ``name``'s x axis about the world z axis."""
         q = self.object_quaternion(name)
-        w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+        w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
         return self.xp.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
     @_cached
@@ -260,7 +341,10 @@ class SimArrays:
         item = self._object(name)
         q = item.qpos
         xp = self.xp
-        z, w, x, y, k = (self.qpos[:, q + i] for i in range(2, 7))
+        if xp is SCALARS:  # one environment: Python floats, the same arithmetic
+            z, w, x, y, k = self.qpos[q + 2 : q + 7].tolist()
+        else:
+            z, w, x, y, k = (self.qpos[..., q + i] for i in range(2, 7))
         r20 = 2.0 * (x * k - w * y)
         r21 = 2.0 * (y * k + w * x)
         r22 = 1.0 - 2.0 * (x * x + y * y)
@@ -271,7 +355,8 @@ class SimArrays:
             reach = size[1] * xp.abs(r22) + size[0] * xp.sqrt(xp.maximum(1.0 - r22 * r22, 0.0))
         else:
             reach = size[0] + 0.0 * z
-        return z - reach - constants.TABLE_TOP_Z_M
+        height = z - reach - constants.TABLE_TOP_Z_M
+        return np.float64(height) if xp is SCALARS else height
 
     # --- fixtures ----------------------------------------------------------------------
     def fixture_position(self, name: str) -> Array:
@@ -282,14 +367,14 @@ class SimArrays:
                 f"this scene has no fixture {name!r}; its fixtures are "
                 f"{list(self.index.fixture_sites)}."
             )
-        return self.site_xpos[:, site, :]
+        return self.site_xpos[..., site, :]
 
     def fixture_joint_position(self, name: str) -> Array:
         """``(n,)``: the position of fixture ``name``'s joint (m for a slide)."""
         adr = self.index.fixture_joints.get(name)
         if adr is None:
             raise ValueError(f"fixture {name!r} has no joint; it does not move.")
-        return self.qpos[:, adr]
+        return self.qpos[..., adr]
 
     # --- contacts ----------------------------------------------------------------------
     @_cached
@@ -301,7 +386,7 @@ class SimArrays:
                 "jaw pads against objects and fixture parts, and objects against the table, "
                 "each other and fixtures."
             )
-        return self.sensordata[:, adr] > 0
+        return self.sensordata[..., adr] > 0
 
     def jaw_contacts(self, name: str) -> tuple[Array, Array]:
         """``(n,)`` each: whether the fixed and the moving jaw pad touch object or fixture
@@ -327,36 +412,60 @@ class SimArrays:
 
     def jaw_touch(self) -> Array:
         """``(n, 2)``: the normal force (N) on the fixed and the moving jaw pad."""
-        return self.xp.stack([self.sensordata[:, a] for a in self.index.touch], axis=1)
+        return self.xp.stack([self.sensordata[..., a] for a in self.index.touch], axis=-1)
 
     # --- soundness -----------------------------------------------------------------------
     def state_is_finite(self) -> Array:
         """``(n,)``: positions, velocities and accelerations are all finite."""
         xp = self.xp
-        total = xp.sum(self.qpos, axis=1) + xp.sum(self.qvel, axis=1) + xp.sum(self.qacc, axis=1)
+        total = xp.sum(self.qpos, axis=-1) + xp.sum(self.qvel, axis=-1) + xp.sum(self.qacc, axis=-1)
         return xp.isfinite(total)
 
 
 def norm(vectors: Array) -> Array:
     """The Euclidean norm over the last axis."""
+    if type(vectors) is np.ndarray and vectors.ndim == 1:
+        # One vector: Python floats, summed in NumPy's order, the same result.
+        total = 0.0
+        for value in vectors.tolist():
+            total += value * value
+        return np.float64(math.sqrt(total))
     return namespace(vectors).sqrt((vectors * vectors).sum(-1))
 
 
-def item(value: Array | list) -> Any:
-    """One simulation's value out of a batch of one, as a plain Python value or array.
+def item(value: Any) -> Any:
+    """One environment's unbatched value as its info gives it: a Python bool, int or
+    float, a fresh array, or the value itself (a colour, a cell or None)."""
+    if isinstance(value, np.ndarray) and value.ndim > 0:
+        return value.copy()
+    if isinstance(value, (np.bool_, bool)):
+        return bool(value)
+    if isinstance(value, (np.integer, int)):
+        return int(value)
+    if isinstance(value, (np.floating, float)):
+        return float(value)
+    if isinstance(value, np.ndarray):  # 0-d
+        return item(value[()])
+    return value
 
-    ``value``: an array with a leading batch axis, or a list with one value per
-    simulation (for values that are not numbers: a colour, a cell or None).
-    """
-    if isinstance(value, list):
-        return value[0]
-    array = np.asarray(value)
-    if array.ndim == 1:
-        scalar = array[0]
-        if array.dtype == np.bool_:
-            return bool(scalar)
-        return int(scalar) if array.dtype.kind in "iu" else float(scalar)
-    return array[0].copy()
+
+def per_env(values: Array, convert: Any) -> Any:
+    """``convert`` applied to each environment's value of ``values`` (``(n,)``: a list)
+    or to one environment's (unbatched: the value itself), for info values that are not
+    numbers."""
+    array = np.asarray(values)
+    if array.ndim == 0:
+        return convert(array[()])
+    return [convert(v) for v in array.tolist()]
 
 
-__all__ = ["ARRAY_FIELDS", "SimArrays", "SimIndex", "item", "namespace", "norm"]
+__all__ = [
+    "ARRAY_FIELDS",
+    "SCALARS",
+    "SimArrays",
+    "SimIndex",
+    "item",
+    "namespace",
+    "norm",
+    "per_env",
+]

@@ -117,9 +117,8 @@ class SoArmPhysics(dm_mujoco.Physics):
         self._site_xpos = d.site_xpos
         self._site_xmat = d.site_xmat
         self._sensordata = d.sensordata
-        self.batch_views = {name: getattr(d, name)[None] for name in ARRAY_FIELDS}
-        """Live ``(1, ...)`` views of the fields a :class:`~gym_soarm.sim.arrays.SimArrays`
-        reads: this simulation as a batch of one."""
+        self.array_views = {name: getattr(d, name) for name in ARRAY_FIELDS}
+        """Live views of the fields a :class:`~gym_soarm.sim.arrays.SimArrays` reads."""
 
         def jid(name: str) -> int:
             return mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)

@@ -18,8 +18,8 @@ What a task scores is written once, as array code over a batch of environments (
 ManiSkill writes its tasks): :meth:`Task.evaluate`, :meth:`Task.compute_reward_terms`,
 :meth:`Task.compute_info` and the state fields read a
 :class:`~gym_soarm.sim.arrays.SimArrays` and answer one value per environment. One
-environment is a batch of one; the batched vector env (:mod:`gym_soarm.batch`) scores all
-its simulations in one call. The code uses the array API only (NumPy here, torch tensors
+environment runs the same code on its own unbatched arrays; the batched vector env
+(:mod:`gym_soarm.batched`) scores all its simulations in one call. The code uses the array API only (NumPy here, torch tensors
 the same), so another physics backend hands over its arrays and the tasks stay as they
 are. Resets and placement stay per environment, on the physics.
 """
@@ -104,7 +104,7 @@ def quaternion_field(name: str, prefix: str, read: StateReader) -> StateField:
 
 def scalar_field(name: str, bound: float, read: StateReader) -> StateField:
     """One number within [-bound, bound], read by ``read`` (``(n,)``: one per environment)."""
-    return StateField(name, (name,), bound, lambda sim, task: read(sim, task)[:, None])
+    return StateField(name, (name,), bound, lambda sim, task: read(sim, task)[..., None])
 
 
 def object_position_field(name: str) -> StateField:
@@ -183,7 +183,7 @@ class Task:
         self.episode: dict[str, np.ndarray] = {
             name: np.zeros((1, *shape)) for name, shape in self.episode_shapes.items()
         }
-        """This environment's :attr:`episode_shapes` values, each as a batch of one."""
+        """This environment's :attr:`episode_shapes` values, each ``(1, *shape)``."""
 
     def set_placement(self, placement: str | None) -> None:
         """Choose how objects start (``None``: the task's default); ValueError if unsupported."""
@@ -272,22 +272,22 @@ class Task:
 
     def batch_state(self, sim: SimArrays) -> Array:
         """``(n, size)``: the values of :attr:`state_fields`, concatenated."""
-        return sim.xp.concat([field.read(sim, self) for field in self.state_fields], axis=1)
+        return sim.xp.concat([field.read(sim, self) for field in self.state_fields], axis=-1)
 
     def arrays(self, physics: SoArmPhysics) -> SimArrays:
-        """One environment's simulation as a batch of one, with this task's episode values."""
+        """One environment's simulation, unbatched, with this task's episode values."""
         return SimArrays.of_physics(physics, self.episode)
 
     # --- one environment, as plain values ------------------------------------------------
     def environment_state(self, physics: SoArmPhysics) -> np.ndarray:
         """The values of :attr:`state_fields`, each as its ``read`` finds it, concatenated."""
-        return np.asarray(self.batch_state(self.arrays(physics)))[0]
+        return np.asarray(self.batch_state(self.arrays(physics)))
 
     def is_success(self, physics: SoArmPhysics, evaluation: Evaluation | None = None) -> bool:
         """Whether the task is done (``evaluation``: :meth:`evaluate`'s, when the caller has it)."""
         if evaluation is None:
             evaluation = self.evaluate(self.arrays(physics))
-        return bool(evaluation["success"][0])
+        return bool(evaluation["success"])
 
     def reward_terms(
         self, physics: SoArmPhysics, evaluation: Evaluation | None = None
@@ -296,13 +296,11 @@ class Task:
 
         Args:
             physics: the simulation to score.
-            evaluation: :meth:`evaluate`'s of it (a batch of one), when the caller has it.
+            evaluation: :meth:`evaluate`'s of it (unbatched), when the caller has it.
         """
         if evaluation is None:
             evaluation = self.evaluate(self.arrays(physics))
-        return {
-            name: float(value[0]) for name, value in self.batch_reward_terms(evaluation).items()
-        }
+        return {name: float(value) for name, value in self.batch_reward_terms(evaluation).items()}
 
     def episode_info(
         self, physics: SoArmPhysics, evaluation: Evaluation | None = None

@@ -17,7 +17,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.sim.arrays import SimArrays
+from gym_soarm.sim.arrays import SimArrays, per_env
 from gym_soarm.sim.objects import SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
@@ -156,9 +156,10 @@ class CubeGridTask(Task):
         self.episode["yaw_deg"][0] = yaw
 
     def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Any]:
-        cells = np.asarray(sim.episode["grid_cell"]).tolist()
         return {
-            "cube_grid_position": [None if c < 0 else int(c) for c in cells],
+            "cube_grid_position": per_env(
+                sim.episode["grid_cell"], lambda c: None if c < 0 else int(c)
+            ),
             "cube_rotation_deg": sim.episode["yaw_deg"],
             "cube_pos": sim.object_position(self.cube),
         }

@@ -66,7 +66,7 @@ class PickAndPlaceTask(CubeGridTask):
 
     def _goal_distance(self, sim: SimArrays) -> Array:
         """Horizontal distance (m) from the cube's centre to the pad's centre."""
-        offset = sim.object_position(self.cube)[:, :2] - sim.fixture_position(GOAL.name)[:, :2]
+        offset = sim.object_position(self.cube)[..., :2] - sim.fixture_position(GOAL.name)[..., :2]
         return batch_norm(offset)
 
     def _on_goal(self, sim: SimArrays, goal_distance: Array) -> Array:

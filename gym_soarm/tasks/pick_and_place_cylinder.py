@@ -181,14 +181,16 @@ class PickAndPlaceCylinderTask(Task):
     # --- pieces -------------------------------------------------------------------------
     def _pad_distance(self, sim: SimArrays) -> Array:
         """Horizontal distance (m) from the cylinder's centre to the pad's centre."""
-        offset = sim.object_position(self.cylinder)[:, :2] - sim.fixture_position(PAD.name)[:, :2]
+        offset = (
+            sim.object_position(self.cylinder)[..., :2] - sim.fixture_position(PAD.name)[..., :2]
+        )
         return batch_norm(offset)
 
     def _standing_on_pad(self, sim: SimArrays, pad_distance: Array) -> Array:
         """Upright, centred within the pad's radius and with its bottom on the table."""
         position = sim.object_position(self.cylinder)
         upright = tilt_cosine(sim.object_quaternion(self.cylinder)) >= _COS_MAX_TILT
-        bottom = position[:, 2] - CYLINDER_HALF_HEIGHT_M - constants.TABLE_TOP_Z_M
+        bottom = position[..., 2] - CYLINDER_HALF_HEIGHT_M - constants.TABLE_TOP_Z_M
         on_table = sim.xp.abs(bottom) <= PLACE_HEIGHT_TOL_M
         return (pad_distance <= PAD_RADIUS_M) & upright & on_table
 

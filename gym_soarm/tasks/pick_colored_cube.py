@@ -26,7 +26,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from gym_soarm.sim.arrays import Array, SimArrays
+from gym_soarm.sim.arrays import Array, SimArrays, per_env
 from gym_soarm.sim.arrays import namespace as sim_namespace
 from gym_soarm.sim.objects import Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
@@ -85,7 +85,9 @@ def _of_target(sim: SimArrays, values: list[Array]) -> Array:
     picked = values[-1]
     for k in range(len(values) - 2, -1, -1):
         chosen = choice == k
-        picked = sim.xp.where(chosen[:, None] if picked.ndim == 2 else chosen, values[k], picked)
+        picked = sim.xp.where(
+            chosen[..., None] if picked.ndim > chosen.ndim else chosen, values[k], picked
+        )
     return picked
 
 
@@ -172,7 +174,7 @@ class PickColoredCubeTask(Task):
 
     def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Any]:
         return {
-            "target_colour": [COLOURS[int(c)] for c in np.asarray(sim.episode["target"])],
+            "target_colour": per_env(sim.episode["target"], lambda c: COLOURS[int(c)]),
             "target_pos": _of_target(sim, [sim.object_position(n) for n in CUBE_NAMES]),
         }
 

@@ -147,13 +147,13 @@ class PlaceInBinTask(Task):
     # --- geometry of the bin -----------------------------------------------------------
     def _bin_offset(self, sim: SimArrays) -> Array:
         """``(n, 2)``: (x, y) of the cube's centre relative to the bin's centre (m)."""
-        return sim.object_position(self.cube)[:, :2] - sim.fixture_position(BIN.name)[:, :2]
+        return sim.object_position(self.cube)[..., :2] - sim.fixture_position(BIN.name)[..., :2]
 
     def _in_bin(self, sim: SimArrays, offset: Array) -> Array:
         """The whole cube lies inside the bin's inner footprint, its top below the rim."""
         xp = sim.xp
         q = sim.object_quaternion(self.cube)
-        w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+        w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
         # Rows of the cube's rotation matrix: its half extents along world x, y and z.
         r0 = (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y))
         r1 = (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x))
@@ -161,10 +161,10 @@ class PlaceInBinTask(Task):
         reach_x = CUBE_HALF_M * (xp.abs(r0[0]) + xp.abs(r0[1]) + xp.abs(r0[2]))
         reach_y = CUBE_HALF_M * (xp.abs(r1[0]) + xp.abs(r1[1]) + xp.abs(r1[2]))
         reach_z = CUBE_HALF_M * (xp.abs(r2[0]) + xp.abs(r2[1]) + xp.abs(r2[2]))
-        inside = (xp.abs(offset[:, 0]) + reach_x <= BIN_INNER_HALF_M) & (
-            xp.abs(offset[:, 1]) + reach_y <= BIN_INNER_HALF_M
+        inside = (xp.abs(offset[..., 0]) + reach_x <= BIN_INNER_HALF_M) & (
+            xp.abs(offset[..., 1]) + reach_y <= BIN_INNER_HALF_M
         )
-        top = sim.object_position(self.cube)[:, 2] + reach_z - constants.TABLE_TOP_Z_M
+        top = sim.object_position(self.cube)[..., 2] + reach_z - constants.TABLE_TOP_Z_M
         return inside & (top < BIN_RIM_Z_M)
 
     def evaluate(self, sim: SimArrays) -> Evaluation:

@@ -166,18 +166,20 @@ class PushTask(Task):
         jaws = sim.jaw_pads_center()
         direction = sim.episode["direction"]
         # How far behind the cube's centre the jaws are, along the push, kept to the stretch.
-        behind = xp.sum((cube[:, :2] - jaws[:, :2]) * direction, axis=1)
+        behind = xp.sum((cube[..., :2] - jaws[..., :2]) * direction, axis=-1)
         behind = xp.minimum(xp.maximum(behind, PUSHER_BEHIND_M[0]), PUSHER_BEHIND_M[1])
-        spot_xy = cube[:, :2] - behind[:, None] * direction
-        gap = jaws - xp.concat([spot_xy, cube[:, 2:]], axis=1)
+        spot_xy = cube[..., :2] - behind[..., None] * direction
+        gap = jaws - xp.concat([spot_xy, cube[..., 2:]], axis=-1)
         return batch_norm(gap)
 
     def evaluate(self, sim: SimArrays) -> Evaluation:
         xp = sim.xp
         lifted = self._lifted(sim)
         # Horizontal offset (m) from the cube's centre to the square's centre.
-        offset = sim.fixture_position(TARGET.name)[:, :2] - sim.object_position(self.cube)[:, :2]
-        over_target = xp.all(xp.abs(offset) <= TARGET_HALF_M, axis=1)
+        offset = (
+            sim.fixture_position(TARGET.name)[..., :2] - sim.object_position(self.cube)[..., :2]
+        )
+        over_target = xp.all(xp.abs(offset) <= TARGET_HALF_M, axis=-1)
         return {
             "success": (
                 ~lifted

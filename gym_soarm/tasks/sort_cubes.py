@@ -173,14 +173,16 @@ class SortCubesTask(Task):
         """One cube's flags and distances, ``(n,)`` each (see :meth:`evaluate`)."""
         xp = sim.xp
         cube = cube_name(colour)
-        offset = sim.object_position(cube)[:, :2] - sim.fixture_position(pad_name(colour))[:, :2]
+        offset = (
+            sim.object_position(cube)[..., :2] - sim.fixture_position(pad_name(colour))[..., :2]
+        )
         distance = batch_norm(offset)
         height = sim.object_height(cube)
         on_pad = (distance <= PAD_RADIUS_M) & (xp.abs(height - PAD_TOP_Z_M) <= PLACE_HEIGHT_TOL_M)
         # How far the jaws are from the cube: horizontally, and in height once more than
         # REACH_HEADROOM_M above it (so rising off a placed cube loses nothing).
         gap = sim.grasp_center() - sim.object_position(cube)
-        rise = xp.maximum(xp.abs(gap[:, 2]) - REACH_HEADROOM_M, 0.0)
+        rise = xp.maximum(xp.abs(gap[..., 2]) - REACH_HEADROOM_M, 0.0)
         return {
             "sorted": on_pad & ~sim.touched_by_jaws(cube),
             "at_rest": sim.object_speed(cube) < RESTING_SPEED_M_S,
@@ -188,7 +190,7 @@ class SortCubesTask(Task):
             "pad_distance_m": distance,
             "grasped": sim.grasped(cube),
             "height_m": height,
-            "reach_distance_m": xp.sqrt(gap[:, 0] ** 2 + gap[:, 1] ** 2 + rise * rise),
+            "reach_distance_m": xp.sqrt(gap[..., 0] ** 2 + gap[..., 1] ** 2 + rise * rise),
         }
 
     @staticmethod
@@ -207,7 +209,7 @@ class SortCubesTask(Task):
     def unsorted(self, physics: SoArmPhysics) -> tuple[str, ...]:
         """The colours whose cube is not yet on its own pad out of the jaws, in sorting order."""
         evaluation = self.evaluate(self.arrays(physics))
-        return tuple(c for c in COLOURS if not bool(evaluation[f"{c}_sorted"][0]))
+        return tuple(c for c in COLOURS if not bool(evaluation[f"{c}_sorted"]))
 
     # --- success and reward ----------------------------------------------------------------
     def evaluate(self, sim: SimArrays) -> Evaluation:

@@ -128,11 +128,11 @@ class StackCubeTask(Task):
     def _offset(self, sim: SimArrays) -> Array:
         """Horizontal distance (m) from the red cube's centre to the blue cube's centre."""
         red, blue = sim.object_position(self.top), sim.object_position(self.bottom)
-        return batch_norm(red[:, :2] - blue[:, :2])
+        return batch_norm(red[..., :2] - blue[..., :2])
 
     def _on_blue(self, sim: SimArrays, offset: Array) -> Array:
         """The red cube sits on top of the blue cube (held or not)."""
-        blue_top = sim.object_position(self.bottom)[:, 2] + CUBE_HALF_M
+        blue_top = sim.object_position(self.bottom)[..., 2] + CUBE_HALF_M
         red_bottom = sim.object_height(self.top) + constants.TABLE_TOP_Z_M
         return (offset <= STACK_RADIUS_M) & (
             sim.xp.abs(red_bottom - blue_top) <= STACK_HEIGHT_TOL_M
@@ -172,7 +172,7 @@ class StackCubeTask(Task):
             "red_cube_pos": sim.object_position(self.top),
             "blue_cube_pos": blue,
             # Where the red cube's centre rests when stacked: on top of the blue cube.
-            "target_pos": sim.xp.concat([blue[:, :2], blue[:, 2:] + CUBE_SIZE_M], axis=1),
+            "target_pos": sim.xp.concat([blue[..., :2], blue[..., 2:] + CUBE_SIZE_M], axis=-1),
         }
 
 

@@ -102,21 +102,21 @@ class StateObservation:
         return spaces.Box(-high, high, dtype=np.float32)
 
     def batch(self, sim: SimArrays, commanded_rad: Array) -> Array:
-        """The observations of ``sim``'s ``n`` states, ``(n, size)`` float32.
+        """The observations of ``sim``'s ``n`` states, ``(n, size)`` float32 (``(size,)``
+        for one environment's unbatched arrays).
 
         Args:
             sim: the simulations.
-            commanded_rad: ``(n, 6)``: each environment's commanded servo targets.
+            commanded_rad: ``(n, 6)`` (or ``(6,)``): the commanded servo targets.
         """
         xp = sim.xp
         jaw = sim.grasp_center()
         state = self._task.batch_state(sim)
         parts = [sim.joint_angles(), sim.joint_velocities(), commanded_rad, jaw, state]
-        parts += [state[:, start : start + 3] - jaw for start in self._jaw_to]
-        parts += [state[:, b : b + 3] - state[:, a : a + 3] for (_, a), (_, b) in self._pairs]
-        return xp.astype(xp.concat(parts, axis=1), xp.float32)
+        parts += [state[..., start : start + 3] - jaw for start in self._jaw_to]
+        parts += [state[..., b : b + 3] - state[..., a : a + 3] for (_, a), (_, b) in self._pairs]
+        return xp.astype(xp.concat(parts, axis=-1), xp.float32)
 
     def __call__(self, physics: SoArmPhysics, commanded_rad: np.ndarray) -> np.ndarray:
         """The observation of one environment's state (a new float32 array)."""
-        sim = self._task.arrays(physics)
-        return self.batch(sim, commanded_rad[None])[0]
+        return self.batch(self._task.arrays(physics), commanded_rad)
