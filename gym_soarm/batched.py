@@ -45,7 +45,16 @@ from gym_soarm.processes import cpu_count
 from gym_soarm.settings import STATE_OBS_TYPES
 from gym_soarm.sim.arrays import ARRAY_FIELDS, SimArrays
 from gym_soarm.validation import check_int
-from gym_soarm.vector import TIME_LIMIT_ATTRIBUTE, _get, _leaves, _nest, _parse_autoreset_mode
+from gym_soarm.vector import (
+    TIME_LIMIT_ATTRIBUTE,
+    _get,
+    _leaves,
+    _nest,
+    _parse_autoreset_mode,
+    check_actions,
+    parse_seeds,
+    pop_reset_mask,
+)
 
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 _STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
@@ -225,16 +234,11 @@ class BatchedVectorEnv(VectorEnv):
                 array of shape ``(num_envs,)``) resets only the marked environments.
         """
         self._check_open()
-        seeds = self._seeds(seed)
+        seeds = parse_seeds(seed, self.num_envs)
         options = dict(options) if options is not None else None
-        mask = np.ones(self.num_envs, dtype=np.bool_)
-        if options is not None and "reset_mask" in options:
-            mask = np.asarray(options.pop("reset_mask"))
-            if mask.shape != (self.num_envs,) or mask.dtype != np.bool_ or not mask.any():
-                raise ValueError(
-                    f"options['reset_mask'] must be a bool array of shape ({self.num_envs},) "
-                    f"with at least one True; got {mask!r}."
-                )
+        mask = pop_reset_mask(options, self.num_envs)
+        if mask is None:
+            mask = np.ones(self.num_envs, dtype=np.bool_)
         rows = np.flatnonzero(mask).tolist()
         infos: dict[str, Any] = {}
         for i in rows:
@@ -247,32 +251,11 @@ class BatchedVectorEnv(VectorEnv):
         self._started = True
         return self._batched_obs(), infos
 
-    def _seeds(self, seed: Any) -> list[int | None]:
-        if seed is None:
-            return [None] * self.num_envs
-        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            seeds: list[Any] = [int(seed) + i for i in range(self.num_envs)]
-        elif isinstance(seed, (Sequence, np.ndarray)) and not isinstance(seed, str):
-            seeds = list(seed)
-            if len(seeds) != self.num_envs:
-                raise ValueError(
-                    f"seed must be None, an int or a list of num_envs={self.num_envs} seeds; "
-                    f"got a list of length {len(seeds)}."
-                )
-        else:
-            raise ValueError(
-                f"seed must be None, an int >= 0 or a list of num_envs={self.num_envs} seeds; "
-                f"got {seed!r}."
-            )
-        return [None if s is None else check_int("seed", s, 0) for s in seeds]
-
     def _reset_one(
         self, i: int, seed: int | None, options: dict[str, Any] | None
     ) -> tuple[Any, dict[str, Any]]:
-        env = self.envs[i]
-        self._in_batch[i] = False  # the reset replaces the batch's state
-        obs, info = env.reset(seed=seed, options=options)
-        self._load(i)
+        obs, info = self.envs[i].reset(seed=seed, options=options)
+        self._load(i)  # the reset replaced the batch's state
         return obs, info
 
     def _write_obs(self, i: int, obs: Any) -> None:
@@ -336,34 +319,9 @@ class BatchedVectorEnv(VectorEnv):
         return self._batched_obs(), rewards, terminated, truncated, infos
 
     def _check_actions(self, actions: Any) -> np.ndarray:
-        array = np.asarray(actions)
-        expected = self.action_space.shape
-        if array.shape != expected:
-            raise ValueError(
-                f"actions must have shape {expected} (one row of joint targets per "
-                f"environment); got shape {array.shape}."
-            )
-        if array.dtype.kind not in "iuf":
-            raise ValueError(
-                f"actions must be real numbers (ints or floats) of shape {expected}; got dtype "
-                f"{array.dtype}."
-            )
-        if self.autoreset_mode is AutoresetMode.DISABLED and self._autoreset_envs.any():
-            done = np.flatnonzero(self._autoreset_envs).tolist()
-            raise RuntimeError(
-                f"environments {done} ended their episodes and autoreset_mode is DISABLED: "
-                "reset them first with reset(options={'reset_mask': mask})."
-            )
-        rows = np.ones(self.num_envs, np.bool_)
-        if self.autoreset_mode is AutoresetMode.NEXT_STEP:
-            rows = ~self._autoreset_envs  # those that reset ignore their row
-        finite = np.isfinite(array.reshape(self.num_envs, -1)).all(axis=1)
-        if not finite[rows].all():
-            bad = np.flatnonzero(rows & ~finite).tolist()
-            raise ValueError(
-                f"actions must be finite; the rows of environments {bad} hold NaN or inf. "
-                "Nothing was stepped; check the policy's output before stepping."
-            )
+        array = check_actions(
+            actions, self.action_space.shape, self.autoreset_mode, self._autoreset_envs
+        )
         return array.astype(np.float64)
 
     def _set_targets(self, actions: np.ndarray, ids: np.ndarray) -> None:

@@ -74,6 +74,91 @@ def _parse_autoreset_mode(mode: AutoresetMode | str) -> AutoresetMode:
     )
 
 
+def parse_seeds(seed: Any, num_envs: int) -> list[int | None]:
+    """One seed per environment: None (fresh entropy), an int ``s`` (environment ``i``
+    gets ``s + i``) or a sequence of ``num_envs`` seeds (or Nones).
+
+    Raises:
+        ValueError: anything else, or a negative seed.
+    """
+    if seed is None:
+        return [None] * num_envs
+    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+        seeds: list[Any] = [int(seed) + i for i in range(num_envs)]
+    elif isinstance(seed, (Sequence, np.ndarray)) and not isinstance(seed, str):
+        seeds = list(seed)
+        if len(seeds) != num_envs:
+            raise ValueError(
+                f"seed must be None, an int or a list of num_envs={num_envs} seeds; "
+                f"got a list of length {len(seeds)}."
+            )
+    else:
+        raise ValueError(
+            f"seed must be None, an int >= 0 or a list of num_envs={num_envs} seeds; got {seed!r}."
+        )
+    return [None if s is None else check_int("seed", s, 0) for s in seeds]
+
+
+def pop_reset_mask(options: dict[str, Any] | None, num_envs: int) -> np.ndarray | None:
+    """``options["reset_mask"]``, taken out of ``options`` and checked (None if absent).
+
+    Raises:
+        ValueError: not a bool array of shape ``(num_envs,)`` with at least one True.
+    """
+    if options is None or "reset_mask" not in options:
+        return None
+    mask = np.asarray(options.pop("reset_mask"))
+    if mask.shape != (num_envs,) or mask.dtype != np.bool_ or not mask.any():
+        raise ValueError(
+            f"options['reset_mask'] must be a bool array of shape ({num_envs},) "
+            f"with at least one True; got {mask!r}."
+        )
+    return mask
+
+
+def check_actions(
+    actions: Any, shape: tuple[int, ...], mode: AutoresetMode, ended: np.ndarray
+) -> np.ndarray:
+    """A vector step's ``actions`` as an array, checked before anything steps.
+
+    Args:
+        actions: one row per environment.
+        shape: the batched action space's shape.
+        mode: the autoreset mode (rows of environments that reset instead may be anything).
+        ended: which environments ended their episodes on the previous step.
+
+    Raises:
+        ValueError: another shape, not real numbers, or NaN/inf in a row that steps.
+        RuntimeError: ``DISABLED`` and an ended episode not reset yet.
+    """
+    array = np.asarray(actions)
+    if array.shape != shape:
+        raise ValueError(
+            f"actions must have shape {shape} (one row of joint targets per "
+            f"environment); got shape {array.shape}."
+        )
+    if array.dtype.kind not in "iuf":
+        raise ValueError(
+            f"actions must be real numbers (ints or floats) of shape {shape}; got dtype "
+            f"{array.dtype}."
+        )
+    if mode is AutoresetMode.DISABLED and ended.any():
+        done = np.flatnonzero(ended).tolist()
+        raise RuntimeError(
+            f"environments {done} ended their episodes and autoreset_mode is DISABLED: "
+            "reset them first with reset(options={'reset_mask': mask})."
+        )
+    rows = ~ended if mode is AutoresetMode.NEXT_STEP else np.ones(len(ended), np.bool_)
+    finite = np.isfinite(array.reshape(len(ended), -1)).all(axis=1)
+    if not finite[rows].all():
+        bad = np.flatnonzero(rows & ~finite).tolist()
+        raise ValueError(
+            f"actions must be finite; the rows of environments {bad} hold NaN or inf. "
+            "Nothing was stepped; check the policy's output before stepping."
+        )
+    return array
+
+
 def _leaves(space: spaces.Space, path: tuple[str, ...] = ()) -> list[_Leaf]:
     """The (key path, shape, dtype) of every array of an observation space, in order."""
     if isinstance(space, spaces.Dict):
@@ -665,32 +750,9 @@ class SoArmVectorEnv(VectorEnv):
             The batched observations and infos of the environments that were reset.
         """
         self._check_open()
-        if seed is None:
-            seeds: list[int | None] = [None] * self.num_envs
-        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            seeds = [int(seed) + i for i in range(self.num_envs)]
-        elif isinstance(seed, (Sequence, np.ndarray)) and not isinstance(seed, str):
-            seeds = list(seed)
-            if len(seeds) != self.num_envs:
-                raise ValueError(
-                    f"seed must be None, an int or a list of num_envs={self.num_envs} seeds; "
-                    f"got a list of length {len(seeds)}."
-                )
-        else:
-            raise ValueError(
-                f"seed must be None, an int >= 0 or a list of num_envs={self.num_envs} seeds; "
-                f"got {seed!r}."
-            )
-        seeds = [None if s is None else check_int("seed", s, 0) for s in seeds]
+        seeds = parse_seeds(seed, self.num_envs)
         options = dict(options) if options is not None else None
-        mask = None
-        if options is not None and "reset_mask" in options:
-            mask = np.asarray(options.pop("reset_mask"))
-            if mask.shape != (self.num_envs,) or mask.dtype != np.bool_ or not mask.any():
-                raise ValueError(
-                    f"options['reset_mask'] must be a bool array of shape ({self.num_envs},) "
-                    f"with at least one True; got {mask!r}."
-                )
+        mask = pop_reset_mask(options, self.num_envs)
         shares = self._split(seeds)
         masks = self._split(mask.tolist()) if mask is not None else [None] * len(shares)
         args = [(share, options, part) for share, part in zip(shares, masks, strict=True)]
@@ -720,34 +782,9 @@ class SoArmVectorEnv(VectorEnv):
         self._check_open()
         if not self._started:
             raise RuntimeError("call reset() before step() on the vector environment.")
-        array = np.asarray(actions)
-        expected = self.action_space.shape
-        if array.shape != expected:
-            raise ValueError(
-                f"actions must have shape {expected} (one row of joint targets per "
-                f"environment); got shape {array.shape}."
-            )
-        if array.dtype.kind not in "iuf":
-            raise ValueError(
-                f"actions must be real numbers (ints or floats) of shape {expected}; got dtype "
-                f"{array.dtype}."
-            )
-        if self.autoreset_mode is AutoresetMode.DISABLED and self._autoreset_envs.any():
-            done = np.flatnonzero(self._autoreset_envs).tolist()
-            raise RuntimeError(
-                f"environments {done} ended their episodes and autoreset_mode is DISABLED: "
-                "reset them first with reset(options={'reset_mask': mask})."
-            )
-        rows = np.ones(self.num_envs, np.bool_)
-        if self.autoreset_mode is AutoresetMode.NEXT_STEP:
-            rows = ~self._autoreset_envs  # those that reset ignore their row
-        finite = np.isfinite(array.reshape(self.num_envs, -1)).all(axis=1)
-        if not finite[rows].all():
-            bad = np.flatnonzero(rows & ~finite).tolist()
-            raise ValueError(
-                f"actions must be finite; the rows of environments {bad} hold NaN or inf. "
-                "Nothing was stepped; check the policy's output before stepping."
-            )
+        array = check_actions(
+            actions, self.action_space.shape, self.autoreset_mode, self._autoreset_envs
+        )
         self._arrays["actions"][...] = array
         messages = []
         finals: dict[int, tuple[Any, dict[str, Any]]] = {}
