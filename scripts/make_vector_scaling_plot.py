@@ -8,8 +8,9 @@ Reads the ``vector_scaling`` reports of one or more benchmark JSON files and dra
 panel per observation type: the speedup of each vector env (native worker processes,
 ``AsyncVectorEnv``, ``SyncVectorEnv``) over one environment against ``num_envs`` (log
 scale), with the one-env line, the ceiling measured in the same run (the environments
-on one free-running process per CPU, no communication) and, for state observations,
-the target of 1.7.
+on one free-running process per CPU, no communication), the bare physics of
+``mujoco.rollout`` on a thread per CPU where the report has it and, for state
+observations, the target of 1.7.
 Drawn with OpenCV, so it needs nothing beyond gym_soarm's dependencies.
 """
 
@@ -31,16 +32,20 @@ OUTPUT = Path(__file__).resolve().parents[1] / "docs" / "vector_scaling.png"
 PANEL = (420, 520)  # (height, width) of one panel
 MARGIN = (50, 60, 60, 20)  # top, left, bottom, right of the plotting area
 COLOURS = {  # BGR
+    "batched": (40, 40, 200),
     "native": (180, 100, 30),
     "async": (30, 130, 230),
     "sync": (110, 110, 110),
     "ceiling": (90, 170, 90),
+    "rollout": (160, 60, 160),
 }
 LABELS = {
+    "batched": "batched (mujoco.batch)",
     "native": "native (processes)",
     "async": "AsyncVectorEnv",
     "sync": "SyncVectorEnv",
     "ceiling": "ceiling (free-running)",
+    "rollout": "mujoco.rollout",
 }
 STATE_TARGET = VECTOR_SPEEDUP_TARGET
 FONT = cv2.FONT_HERSHEY_SIMPLEX
@@ -70,6 +75,7 @@ def panel(report: dict[str, Any]) -> np.ndarray:
     counts = sorted({r["num_envs"] for r in report["rows"]})
     speedups = [r["speedup"] for r in report["rows"]]
     speedups += [r.get("ceiling_speedup", 0.0) for r in report["rows"]]
+    speedups += [_rollout_speedup(r) for r in report["rows"]]
     y_max = max(2.0, math.ceil(max(speedups) * 5 + 1) / 5)
     x_lo, x_hi = math.log2(counts[0]), max(math.log2(counts[-1]), math.log2(counts[0]) + 1)
 
@@ -80,7 +86,8 @@ def panel(report: dict[str, Any]) -> np.ndarray:
             round(height - bottom - y / y_max * (height - top - bottom)),
         )
 
-    for tick in np.arange(0, y_max + 1e-9, 0.5 if y_max <= 3 else 1.0):
+    step = 0.5 if y_max <= 3 else 1.0 if y_max <= 10 else 5.0
+    for tick in np.arange(0, y_max + 1e-9, step):
         y = point(counts[0], tick)[1]
         cv2.line(image, (left, y), (width - right, y), (230, 230, 230), 1)
         _text(image, f"{tick:.1f}", (left - 36, y + 5), 0.4)
@@ -105,6 +112,8 @@ def panel(report: dict[str, Any]) -> np.ndarray:
         key=lambda r: r["num_envs"],
     )
     lines = [("ceiling", [point(r["num_envs"], r["ceiling_speedup"]) for r in ceiling_rows])]
+    if all("rollout_steps_per_s" in r for r in ceiling_rows):
+        lines.append(("rollout", [point(r["num_envs"], _rollout_speedup(r)) for r in ceiling_rows]))
     for mode in report["modes"]:
         rows = sorted((r for r in report["rows"] if r["mode"] == mode), key=lambda r: r["num_envs"])
         lines.append((mode, [point(r["num_envs"], r["speedup"]) for r in rows]))
@@ -112,18 +121,24 @@ def panel(report: dict[str, Any]) -> np.ndarray:
         if not points:
             continue
         colour = COLOURS.get(mode, INK)
-        thickness = 1 if mode == "ceiling" else 2
+        thickness = 1 if mode in ("ceiling", "rollout") else 2
         cv2.polylines(image, [np.array(points, np.int32)], False, colour, thickness, cv2.LINE_AA)
         for p in points:
-            cv2.circle(image, p, 3 if mode == "ceiling" else 4, colour, -1, cv2.LINE_AA)
+            small = mode in ("ceiling", "rollout")
+            cv2.circle(image, p, 3 if small else 4, colour, -1, cv2.LINE_AA)
     obs = (
         report["obs"]
         if report["obs"] == "state"
         else f"{report['obs']} {report['size'][0]}x{report['size'][1]}"
     )
-    one = f"one env {report['single_steps_per_s']:,.0f} steps/s"
+    one = f"{report.get('cpus', '?')} cores, one env {report['single_steps_per_s']:,.0f} steps/s"
     cv2.putText(image, f"{obs} ({one})", (left, 24), FONT, 0.5, INK, 1, cv2.LINE_AA)
     return image
+
+
+def _rollout_speedup(row: dict[str, Any]) -> float:
+    """``mujoco.rollout``'s steps/s over one env's, in the row's run (0 if not measured)."""
+    return row.get("rollout_steps_per_s", 0.0) / row["single_steps_per_s"]
 
 
 def legend(modes: Sequence[str], width: int) -> np.ndarray:
@@ -143,6 +158,8 @@ def draw(reports: Sequence[dict[str, Any]]) -> np.ndarray:
     modes = list(dict.fromkeys(m for r in reports for m in r["modes"]))
     if any("ceiling_speedup" in row for r in reports for row in r["rows"]):
         modes.append("ceiling")
+    if any("rollout_steps_per_s" in row for r in reports for row in r["rows"]):
+        modes.append("rollout")
     return np.vstack([row, legend(modes, row.shape[1])])
 
 
