@@ -54,7 +54,7 @@ from gym_soarm.tasks import (  # noqa: E402
     task_names,
 )
 
-__version__ = "0.6.0"
+__version__ = "0.7.0"
 
 
 def make_expert(env, config=None):

@@ -31,8 +31,9 @@ from typing import Any
 import mujoco
 import numpy as np
 
-SNAPSHOT_VERSION = 1
-"""The layout of :class:`Snapshot`; a snapshot of another layout is refused."""
+SNAPSHOT_VERSION = 2
+"""The layout of :class:`Snapshot`; a snapshot of another layout is refused (2: a task
+keeps its per-episode values in its ``episode`` arrays)."""
 
 PHYSICS_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 """The MuJoCo state components a snapshot holds: everything ``mj_step`` reads."""
