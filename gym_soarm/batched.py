@@ -13,8 +13,9 @@
   end-effector modes, a servo delay and the STS3215 servo model run per environment.
 * Each environment is still a :class:`~gym_soarm.env.SoArmEnv`, which resets (placement,
   variation, reset options, snapshots), renders and answers ``call``/``get_attr``; its
-  simulation is copied into the batch at its reset and back from it when it is asked
-  for. Pixel observations render each environment this way: the process-based
+  simulation is copied into the batch at its reset and after a ``call`` or ``set_attr``,
+  and back from it when it is asked for (an object that ``get_attr`` hands out and that
+  is changed later is not copied back: change a simulation through ``call``). Pixel observations render each environment this way: the process-based
   :class:`~gym_soarm.vector.SoArmVectorEnv` is faster for them, and ``"auto"`` picks it.
 * The episodes are those of N single ``gym.make`` environments, bit for bit: the same
   observations, rewards, terminations, truncations and infos (batched as
@@ -536,23 +537,29 @@ class BatchedVectorEnv(VectorEnv):
         """
         if name == TIME_LIMIT_ATTRIBUTE:
             return self.get_attr(name)
-        return tuple(self._call(i, name, args, kwargs) for i in range(self.num_envs))
+        try:
+            return tuple(self._call(i, name, args, kwargs) for i in range(self.num_envs))
+        finally:
+            self._batch.set_models(self._models)
 
     def call_some(
         self, indices: Sequence[int], name: str, *args: Any, **kwargs: Any
     ) -> dict[int, Any]:
         """:meth:`call` on the environments of ``indices`` only; their results by index."""
         wanted = sorted({check_int("index", i, 0, self.num_envs - 1) for i in indices})
-        return {i: self._call(i, name, args, kwargs) for i in wanted}
+        try:
+            return {i: self._call(i, name, args, kwargs) for i in wanted}
+        finally:
+            self._batch.set_models(self._models)
 
     def _call(self, i: int, name: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
+        """Call ``name`` on environment ``i`` as the batch left it; whatever the call
+        changed (a reset, a restored snapshot, a nudged object) goes back into the batch."""
         self._check_open()
         env = self._unload(i)
         attribute = getattr(env, name)
         result = attribute(*args, **kwargs) if callable(attribute) else attribute
-        if name in ("reset",):
-            self._load(i)
-            self._batch.set_models(self._models)
+        self._load(i)
         return result
 
     def get_attr(self, name: str) -> tuple[Any, ...]:
@@ -573,6 +580,8 @@ class BatchedVectorEnv(VectorEnv):
             )
         for i, value in enumerate(values):
             setattr(self._unload(i), name, copy.copy(value))
+            self._load(i)
+        self._batch.set_models(self._models)
 
     def close_extras(self, **kwargs: Any) -> None:
         """Close every environment and release the batch's threads."""
