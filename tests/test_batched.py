@@ -330,3 +330,20 @@ def test_the_sb3_vector_env_of_the_trainer_is_the_batched_one_for_state():
             venv.step_wait()
     finally:
         venv.close()
+
+
+def test_what_a_call_changes_in_an_environment_reaches_the_batch():
+    def run(vector_env: str, **kwargs) -> list[np.ndarray]:
+        envs = _vec("LiftCube-v0", 2, vector_env, **kwargs, **STATE)
+        try:
+            envs.reset(seed=0)
+            envs.step(np.zeros((2, 6)))
+            envs.call_some([1], "hold_servo_targets", np.full(6, 0.2))  # env 1's servos move
+            return [envs.step(np.full((2, 6), 0.1))[0] for _ in range(3)]
+        finally:
+            envs.close()
+
+    expected, got = run("processes", num_processes=1), run("batched")
+    for a, b in zip(expected, got, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(got[-1][0], got[-1][1])  # the call changed environment 1 only
