@@ -157,8 +157,14 @@ class BatchedVectorEnv(VectorEnv):
 
         self._task = first.task_logic  # scores the batch; per-env values live in _episode
         self._models = [env.physics.model.ptr for env in self.envs]
-        self._batch = mujoco.batch.Batch(self._models[0], num_envs, num_threads)
-        self._batch.set_models(self._models)
+        try:
+            _check_batchable(first.task_spec)
+            self._batch = mujoco.batch.Batch(self._models[0], num_envs, num_threads)
+            self._batch.set_models(self._models)
+        except BaseException:
+            for env in self.envs:
+                env.close()
+            raise
         arrays = {name: self._batch.bind(name) for name in ARRAY_FIELDS}
         self._ctrl = self._batch.bind("ctrl")
         self._actuators = first.physics._actuator_ids
@@ -172,7 +178,10 @@ class BatchedVectorEnv(VectorEnv):
         self._in_batch = np.zeros(num_envs, dtype=np.bool_)  # env i's own data is stale
         self._own_control = np.zeros(num_envs, dtype=np.bool_)
         self._autoreset_envs = np.zeros(num_envs, dtype=np.bool_)
-        self._last_infos: dict[str, Any] = {}
+        self._last_infos: dict[str, Any] = {}  # the last step's (for a divergence)
+        self._reset_infos: list[dict[str, Any] | None] = [None] * num_envs
+        self._info_from_reset = np.zeros(num_envs, dtype=np.bool_)  # last info: the reset's
+        self._sparse = np.zeros(num_envs, dtype=np.bool_)  # reward_type, per environment
         self._control = self._batch_control(first)
         self._instructions = np.empty(num_envs, dtype=object)
         self._started = False
@@ -203,6 +212,7 @@ class BatchedVectorEnv(VectorEnv):
         self._steps[i] = env._step_count
         self._in_batch[i] = False
         self._instructions[i] = env.task_description
+        self._sparse[i] = env.reward_type == "sparse"
         self._sim.clear()
 
     def _unload(self, i: int) -> SoArmEnv:
@@ -210,8 +220,12 @@ class BatchedVectorEnv(VectorEnv):
         env = self.envs[i]
         if self._in_batch[i]:
             physics = env.physics
-            self._batch.get_data(i, physics.data.ptr)
-            mujoco.mj_step1(physics.model.ptr, physics.data.ptr)  # what a step leaves computed
+            data = physics.data.ptr
+            self._batch.get_data(i, data)
+            mujoco.mj_step1(physics.model.ptr, data)  # positions and velocities, as a step
+            # The last substep's accelerations and sensors, as a step leaves them.
+            data.qacc[:] = self._sim.qacc[i]
+            data.sensordata[:] = self._sim.sensordata[i]
             for name, values in env.task_logic.episode.items():
                 values[0] = self._episode[name][i]
             env._commanded = self._commanded[i].copy()
@@ -257,6 +271,8 @@ class BatchedVectorEnv(VectorEnv):
     ) -> tuple[Any, dict[str, Any]]:
         obs, info = self.envs[i].reset(seed=seed, options=options)
         self._load(i)  # the reset replaced the batch's state
+        self._reset_infos[i] = info
+        self._info_from_reset[i] = True
         return obs, info
 
     def _write_obs(self, i: int, obs: Any) -> None:
@@ -302,6 +318,7 @@ class BatchedVectorEnv(VectorEnv):
             array_[stepping] = rows[stepping]
         if diverged.any():
             self._truncate_diverged(reasons, last_obs, rewards, terminated, truncated, infos)
+        self._info_from_reset[stepping] = False  # their last info is this step's
         ended = (terminated | truncated) & stepping
         if mode is AutoresetMode.SAME_STEP and ended.any():
             infos = self._reset_ended(np.flatnonzero(ended), infos)
@@ -394,7 +411,7 @@ class BatchedVectorEnv(VectorEnv):
         success = np.asarray(evaluation["success"], dtype=np.bool_)
         terms = task.batch_reward_terms(evaluation)
         first = self.envs[0]
-        if first.reward_type == "sparse":
+        if self._sparse.all():
             rewards = success.astype(np.float64)
         else:
             limit = (
@@ -406,6 +423,7 @@ class BatchedVectorEnv(VectorEnv):
             rewards = np.where(
                 success, bonus, np.asarray(task.weights.total(terms), dtype=np.float64)
             )
+            rewards = np.where(self._sparse, success.astype(np.float64), rewards)
         obs_rows = self._observations()
         infos = self._infos(sim, evaluation, success, terms)
         return rewards, success.copy(), obs_rows, infos
@@ -482,11 +500,22 @@ class BatchedVectorEnv(VectorEnv):
             truncated[i] = True
             for array, row in zip(self._obs, rows, strict=True):
                 array[i] = row
+            # The last sound info: the reset's, or the previous step's row.
+            reset_info = self._reset_infos[i] if self._info_from_reset[i] else None
             previous = self._last_infos
             for key, value in infos.items():
-                if key.startswith("_") or key not in previous or isinstance(value, dict):
+                if key.startswith("_") or isinstance(value, dict):
                     continue
-                value[i] = previous[key][i]
+                if reset_info is not None and key in reset_info:
+                    value[i] = reset_info[key]
+                elif reset_info is None and key in previous:
+                    value[i] = previous[key][i]
+            env = self.envs[i]  # as a single environment, it refuses to go on until reset
+            env._needs_reset = True
+            env._no_episode_reason = (
+                f"the previous step truncated the episode because the physics diverged "
+                f"({reasons[i]})"
+            )
             infos["is_success"][i] = False
             infos["physics_unstable"][i] = True
             for name, value in infos["reward_terms"].items():
@@ -537,6 +566,7 @@ class BatchedVectorEnv(VectorEnv):
         """
         if name == TIME_LIMIT_ATTRIBUTE:
             return self.get_attr(name)
+        self._check_open()
         try:
             return tuple(self._call(i, name, args, kwargs) for i in range(self.num_envs))
         finally:
@@ -546,6 +576,7 @@ class BatchedVectorEnv(VectorEnv):
         self, indices: Sequence[int], name: str, *args: Any, **kwargs: Any
     ) -> dict[int, Any]:
         """:meth:`call` on the environments of ``indices`` only; their results by index."""
+        self._check_open()
         wanted = sorted({check_int("index", i, 0, self.num_envs - 1) for i in indices})
         try:
             return {i: self._call(i, name, args, kwargs) for i in wanted}
@@ -571,6 +602,7 @@ class BatchedVectorEnv(VectorEnv):
 
     def set_attr(self, name: str, values: list[Any] | tuple[Any, ...] | Any) -> None:
         """Set ``name`` on every environment: one value each, or the same value for all."""
+        self._check_open()
         if not isinstance(values, (list, tuple)):
             values = [values] * self.num_envs
         if len(values) != self.num_envs:
@@ -584,10 +616,17 @@ class BatchedVectorEnv(VectorEnv):
         self._batch.set_models(self._models)
 
     def close_extras(self, **kwargs: Any) -> None:
-        """Close every environment and release the batch's threads."""
+        """Close every environment and release the batch and its threads."""
+        # Every reference to the batch goes (its bound arrays hold it too).
+        self._batch = self._ctrl = self._sim = None
+        errors = []
         for env in self.envs:
-            env.close()
-        self._batch = None
+            try:
+                env.close()
+            except Exception as exc:  # close the others first, then raise the first
+                errors.append(exc)
+        if errors:
+            raise errors[0]
 
     def close(self, **kwargs: Any) -> None:
         """Close all environments; idempotent."""
@@ -597,12 +636,34 @@ class BatchedVectorEnv(VectorEnv):
         self.close_extras(**kwargs)
 
 
+def _check_batchable(spec: Any) -> None:
+    """Refuse a task whose ``before_step`` hook acts on one environment's physics."""
+    from gym_soarm.tasks.base import Task
+
+    if spec.task.before_step is not Task.before_step:
+        raise ValueError(
+            f"{spec.name}'s task overrides before_step(action, physics), which acts on one "
+            "environment's physics between its own steps; the batched vector env steps every "
+            "simulation at once and cannot call it. Use vector_env='processes'."
+        )
+
+
 def wants_batched(env_kwargs: dict[str, Any]) -> bool:
-    """Whether ``vector_env="auto"`` batches these environments: state observations."""
-    obs_type = env_kwargs.get("obs_type")
+    """Whether ``vector_env="auto"`` batches these environments: state observations, and
+    a task that leaves ``before_step`` to the environment."""
+    from gym_soarm.tasks import DEFAULT_TASK, get_task
+
     settings = env_kwargs.get("settings")
-    if obs_type is None and settings is not None:
-        obs_type = getattr(settings, "obs_type", None)
+    obs_type = env_kwargs.get("obs_type", getattr(settings, "obs_type", None))
+    task = env_kwargs.get("task", getattr(settings, "task", None)) or DEFAULT_TASK
+    try:
+        spec = get_task(task)
+    except (ValueError, TypeError):  # an unknown task: the environment names the error
+        return obs_type in STATE_OBS_TYPES
+    try:
+        _check_batchable(spec)
+    except ValueError:
+        return False
     return obs_type in STATE_OBS_TYPES
 
 

@@ -8,6 +8,7 @@ diverged simulation's episode alone.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import warnings
 
@@ -17,9 +18,10 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import gym_soarm
-from gym_soarm.batched import BatchedVectorEnv
+from gym_soarm.batched import BatchedVectorEnv, wants_batched
 from gym_soarm.expert import make_expert
 from gym_soarm.sim.arrays import SimArrays
+from gym_soarm.tasks.registry import unregister_task
 from gym_soarm.vector import SoArmVectorEnv
 
 TASKS = gym_soarm.task_names()
@@ -347,3 +349,76 @@ def test_what_a_call_changes_in_an_environment_reaches_the_batch():
     for a, b in zip(expected, got, strict=True):
         np.testing.assert_array_equal(a, b)
     assert not np.array_equal(got[-1][0], got[-1][1])  # the call changed environment 1 only
+
+
+def test_a_divergence_right_after_reset_returns_the_reset_info_and_the_env_refuses_to_go_on():
+    results = {}
+    for vector_env, extra in (("processes", {"num_processes": 1}), ("batched", {})):
+        envs = _vec("LiftCube-v0", 2, vector_env, **extra, **STATE)
+        try:
+            envs.reset(seed=3)
+            if vector_env == "batched":
+                envs.unwrapped._sim.qvel[1, :] = 1e30
+            else:
+                envs.unwrapped._local.envs[1].physics.data.qvel[:] = 1e30
+            with pytest.warns(RuntimeWarning, match="diverged"):
+                results[vector_env] = envs.step(np.zeros((2, 6)))
+            with pytest.raises(RuntimeError, match="physics diverged"):
+                envs.call_some([1], "save_state")
+        finally:
+            envs.close()
+    expected, got = results["processes"], results["batched"]
+    for key in ("cube_pos", "gripper_pos", "cube_grid_position", "is_success"):
+        assert_same(expected[4][key], got[4][key], key)
+    np.testing.assert_array_equal(expected[0], got[0])
+
+
+def test_settings_changed_per_environment_and_calls_after_close():
+    envs = _vec("LiftCube-v0", 2, "batched", **STATE)
+    reference = _vec("LiftCube-v0", 2, "processes", num_processes=1, **STATE)
+    try:
+        for vec in (envs, reference):
+            vec.reset(seed=0)
+            vec.set_attr("reward_type", ["dense", "sparse"])
+        actions = np.full((2, 6), 0.05)
+        assert_same(reference.step(actions), envs.step(actions))
+        single = gym.make("gym_soarm/LiftCube-v0", **STATE)
+        single.reset(seed=0)
+        single.step(actions[0])
+        inner = envs.get_attr("physics")[0]  # copied back: what a step leaves, sensors too
+        np.testing.assert_array_equal(
+            inner.data.sensordata, single.unwrapped.physics.data.sensordata
+        )
+        np.testing.assert_array_equal(inner.data.qacc, single.unwrapped.physics.data.qacc)
+        single.close()
+    finally:
+        envs.close()
+        reference.close()
+    for call in (
+        lambda: envs.call("task_description"),
+        lambda: envs.call_some([0], "task_description"),
+        lambda: envs.set_attr("reward_type", "sparse"),
+        lambda: envs.get_attr("reward_type"),
+    ):
+        with pytest.raises(RuntimeError, match="closed"):
+            call()
+
+
+def test_a_task_that_steps_its_own_physics_is_left_to_the_process_env():
+    from gym_soarm.tasks.lift_cube import LiftTask
+
+    class NudgingLift(LiftTask):
+        def before_step(self, action, physics):
+            physics.set_joint_targets(action * 0.5)
+
+    spec = dataclasses.replace(
+        gym_soarm.get_task("LiftCube-v0"), name="NudgingLift-v0", task=NudgingLift, aliases=()
+    )
+    gym_soarm.register_task(spec)
+    try:
+        assert wants_batched({"task": "LiftCube-v0", **STATE})
+        assert not wants_batched({"task": "NudgingLift-v0", **STATE})  # auto: processes
+        with pytest.raises(ValueError, match=r"overrides before_step.*vector_env='processes'"):
+            _vec("NudgingLift-v0", 2, "batched", **STATE)
+    finally:
+        unregister_task("NudgingLift-v0")

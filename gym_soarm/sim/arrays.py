@@ -54,8 +54,10 @@ class _Scalars:
     One environment is scored on its own simulation's arrays without a batch axis, so its
     flags and distances are NumPy scalars; these functions answer for them with Python's
     scalar operations, which cost a fraction of a NumPy call, and hand arrays (an
-    object's position, ``(3,)``) to NumPy. Results equal NumPy's bit for bit: the
-    transcendental functions are NumPy's own.
+    object's position, ``(3,)``) to NumPy. For finite float64 values the results equal
+    NumPy's bit for bit (the transcendental functions are NumPy's own); ``maximum`` and
+    ``minimum`` do not propagate NaN as NumPy's do (a NaN state is a divergence, caught
+    before any task is scored).
     """
 
     float32 = np.float32
@@ -234,7 +236,7 @@ class SimArrays:
         index: where the scene's parts lie (:class:`SimIndex`).
         arrays: the ``MjData`` fields of :data:`ARRAY_FIELDS`, each ``(n, ...)``, as
             they are after a step (positions-stage values current).
-        episode: each environment's per-episode values, ``(n,)`` arrays by name (what
+        episode: each environment's per-episode values, ``(n, ...)`` arrays by name (what
             a task keeps between steps: a start distance, the most an object rose ...).
             Tasks may update them in place.
     """
@@ -453,10 +455,9 @@ def per_env(values: Array, convert: Any) -> Any:
     """``convert`` applied to each environment's value of ``values`` (``(n,)``: a list)
     or to one environment's (unbatched: the value itself), for info values that are not
     numbers."""
-    array = np.asarray(values)
-    if array.ndim == 0:
-        return convert(array[()])
-    return [convert(v) for v in array.tolist()]
+    if getattr(values, "ndim", 0) == 0:
+        return convert(values.item() if hasattr(values, "item") else values)
+    return [convert(v) for v in values.tolist()]  # NumPy arrays and torch tensors alike
 
 
 __all__ = [
