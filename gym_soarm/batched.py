@@ -52,9 +52,11 @@ from gym_soarm.vector import (
     _leaves,
     _nest,
     _parse_autoreset_mode,
+    batched_obs,
     check_actions,
     parse_seeds,
     pop_reset_mask,
+    values_per_env,
 )
 
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -280,8 +282,7 @@ class BatchedVectorEnv(VectorEnv):
             array[i] = _get(obs, path)
 
     def _batched_obs(self) -> Any:
-        arrays = [a.copy() for a in self._obs] if self.copy else self._obs
-        return _nest({path: a for (path, _, _), a in zip(self._leaves, arrays, strict=True)})
+        return batched_obs(self._leaves, self._obs, self.copy)
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every environment with its row of ``actions`` (shape ``(num_envs, 6)``).
@@ -603,14 +604,7 @@ class BatchedVectorEnv(VectorEnv):
     def set_attr(self, name: str, values: list[Any] | tuple[Any, ...] | Any) -> None:
         """Set ``name`` on every environment: one value each, or the same value for all."""
         self._check_open()
-        if not isinstance(values, (list, tuple)):
-            values = [values] * self.num_envs
-        if len(values) != self.num_envs:
-            raise ValueError(
-                f"values must hold one value per environment (num_envs={self.num_envs}); "
-                f"got {len(values)}."
-            )
-        for i, value in enumerate(values):
+        for i, value in enumerate(values_per_env(values, self.num_envs)):
             setattr(self._unload(i), name, copy.copy(value))
             self._load(i)
         self._batch.set_models(self._models)

