@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+from typing import Any
 
 
 def _import_dm_control_without_gl() -> None:
@@ -57,12 +58,12 @@ from gym_soarm.tasks import (  # noqa: E402
 __version__ = "0.7.0"
 
 
-def make_expert(env, config=None):
-    """A scripted expert for ``env``'s task; see :func:`gym_soarm.expert.make_expert`."""
-    from gym_soarm.expert import DEFAULT_CONFIG
+def make_expert(env: Any, config: Any = None, kind: str = "state") -> Any:
+    """The expert of ``env``'s task: the one that acts from the state unless
+    ``kind="scripted"`` asks for the timed script; see :func:`gym_soarm.expert.make_expert`."""
     from gym_soarm.expert import make_expert as _make_expert
 
-    return _make_expert(env, DEFAULT_CONFIG if config is None else config)
+    return _make_expert(env, config, kind)
 
 
 __all__ = [

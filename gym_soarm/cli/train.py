@@ -1,11 +1,14 @@
 """``python -m gym_soarm.train`` (``gym-soarm-train``): train a state policy with
-Stable-Baselines3, or imitate the scripted expert.
+Stable-Baselines3, or imitate the task's expert from the state or from the cameras.
 
 ``--algo ppo|sac --task T --seed S [--steps N] --out DIR``: the package's recipe for the
 algorithm and task (:mod:`gym_soarm.rl.hyperparams`), checkpoints, ``curve.csv`` and
 ``curve.png`` in ``DIR`` (:func:`gym_soarm.rl.training.train`). ``--algo bc|dagger``:
 behaviour cloning (DART noise) or DAgger from the task's expert
 (:func:`gym_soarm.rl.imitation.train_imitation`), the same files plus ``demos.npz``.
+With ``--obs-type pixels_agent_pos`` (and ``--camera-config``, ``--observation-height``,
+``--observation-width``) BC and DAgger train a pixel student
+(:mod:`gym_soarm.rl.pixels`), on ``--device`` (default cpu).
 ``--algo ppo --init DIR``: PPO starting from the BC/DAgger policy in ``DIR``. Ctrl-C
 stops the run and keeps its last checkpoint and curve.
 """
@@ -43,10 +46,19 @@ def _hyperparam(text: str) -> tuple[str, Any]:
         ) from None
 
 
+PIXEL_SETTINGS: tuple[str, ...] = (
+    "obs_type",
+    "camera_config",
+    "observation_height",
+    "observation_width",
+    "render_quality",
+)
+"""What a pixel student sees (``--algo bc|dagger --obs-type pixels_agent_pos``); PPO and
+SAC learn from the state and refuse them."""
+
 TRAIN_EXCLUDES: tuple[str, ...] = (
     "task",  # --task
-    "obs_type",  # state policies: the recipe's
-    *IMAGE_SETTINGS,  # nothing is rendered
+    *(name for name in IMAGE_SETTINGS if name not in PIXEL_SETTINGS),  # no window, RGB only
 )
 """The environment settings the trainers set themselves."""
 
@@ -114,6 +126,12 @@ def build_parser() -> argparse.ArgumentParser:
         "the same task), with a behaviour-cloning term on its demonstrations",
     )
     parser.add_argument(
+        "--device",
+        default="cpu",
+        help="where a pixel student trains: cpu (default), cuda or cuda:N (bc and dagger "
+        "with --obs-type pixels_agent_pos)",
+    )
+    parser.add_argument(
         "--no-progress", action="store_true", help="no progress bar (e.g. in log files)"
     )
     add_settings_arguments(
@@ -155,8 +173,18 @@ def main(argv: Sequence[str] | None = None) -> int:
                 eval_episodes=args.eval_episodes,
                 hyperparams=dict(args.hyperparams),
                 env=env_changes(args),
+                device=args.device,
             )
         else:
+            pixel_flags = sorted(set(env_changes(args)) & set(PIXEL_SETTINGS))
+            if pixel_flags or args.device != "cpu":
+                given = pixel_flags or ["device"]
+                raise ValueError(
+                    f"--algo {args.algo} learns from the state vector; "
+                    f"{', '.join('--' + name.replace('_', '-') for name in given)} "
+                    "apply to pixel students (--algo bc or dagger with --obs-type "
+                    "pixels_agent_pos). Drop them."
+                )
             from gym_soarm.rl.training import train
 
             result = train(

@@ -62,16 +62,19 @@ def read_settings(folder: str | os.PathLike[str]) -> dict[str, Any]:
             f"--policy must be a folder written by python -m gym_soarm.train (or 'expert'); "
             f"{str(path)!r} is not a folder."
         )
-    if not settings_path.is_file() or not (path / MODEL_FILE).is_file():
+    settings: Any = None
+    if settings_path.is_file():
+        try:
+            settings = json.loads(settings_path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise ValueError(f"{settings_path} is not valid JSON ({exc}).") from None
+    model = model_file(settings)
+    if not settings_path.is_file() or not (path / model).is_file():
         raise ValueError(
             f"{str(path)!r} is not a gym-soarm policy folder: it must hold {SETTINGS_FILE} "
-            f"and {MODEL_FILE}, as python -m gym_soarm.train writes them. Pass the --out "
+            f"and {model}, as python -m gym_soarm.train writes them. Pass the --out "
             "folder of a training run."
         )
-    try:
-        settings = json.loads(settings_path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{settings_path} is not valid JSON ({exc}).") from None
     if not isinstance(settings, dict) or settings.get("format") != POLICY_FORMAT:
         got = settings.get("format") if isinstance(settings, dict) else type(settings).__name__
         raise ValueError(
@@ -90,6 +93,15 @@ def read_settings(folder: str | os.PathLike[str]) -> dict[str, Any]:
         )
     get_task(settings["task"])  # a ValueError naming the registered tasks
     return settings
+
+
+def model_file(settings: Any) -> str:
+    """The model's file name in a policy folder of ``settings`` (a pixel student's own)."""
+    from gym_soarm.rl.pixels import PIXEL_MODEL_FILE, PIXEL_POLICY
+
+    if isinstance(settings, dict) and settings.get("policy") == PIXEL_POLICY:
+        return PIXEL_MODEL_FILE
+    return MODEL_FILE
 
 
 class TrainedPolicy:
@@ -127,6 +139,21 @@ class TrainedPolicy:
                 f"({len(settings['observation_names'])} values) than {trained} has now "
                 f"({len(names)}); retrain it with this version of gym-soarm."
             )
+        self.settings = settings
+        self.task = trained
+        self._normalizer = None
+        self._pixels = None
+        if model_file(settings) != MODEL_FILE:
+            from gym_soarm.rl.pixels import PixelPolicy
+
+            self._pixels = PixelPolicy.load(folder)
+            if self._pixels.net.head[-1].out_features != action_space.shape[0]:
+                raise ValueError(
+                    f"the pixel policy in {str(folder)!r} gives {self._pixels.net.head[-1].out_features} "
+                    f"actions; {trained} with its saved settings takes {action_space.shape[0]}. "
+                    "Retrain it."
+                )
+            return
         sb3 = require_sb3()
         algo_class = getattr(sb3, POLICY_CLASSES[settings["algo"]])
         path = Path(folder)
@@ -140,9 +167,6 @@ class TrainedPolicy:
                 f"{self.model.action_space.shape}; {trained} with its saved settings has "
                 f"{obs_space.shape} and {action_space.shape}. Retrain it."
             )
-        self.settings = settings
-        self.task = trained
-        self._normalizer = None
         if (path / NORMALIZE_FILE).is_file():
             import pickle
 
@@ -150,7 +174,9 @@ class TrainedPolicy:
                 self._normalizer = pickle.load(stream)
             self._normalizer.training = False
 
-    def __call__(self, obs: np.ndarray, info: dict[str, Any] | None = None) -> np.ndarray:
+    def __call__(self, obs: Any, info: dict[str, Any] | None = None) -> np.ndarray:
+        if self._pixels is not None:
+            return self._pixels(obs, info)
         if self._normalizer is not None:
             obs = self._normalizer.normalize_obs(obs)
         action, _ = self.model.predict(obs, deterministic=True)

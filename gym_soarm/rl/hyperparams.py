@@ -184,6 +184,91 @@ HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
 }
 
 
+_PIXEL_ENV: dict[str, Any] = {
+    "obs_type": "pixels_agent_pos",
+    "camera_config": "front_wrist",
+    "observation_height": 96,
+    "observation_width": 128,
+    "normalize_actions": True,
+    "control_mode": "joint_delta",
+}
+
+PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
+    "bc": {
+        "default": {
+            "env": _PIXEL_ENV,
+            "n_envs": 4,
+            "torch_threads": 2,
+            "eval_episodes": 20,
+            "algo": {
+                "demos": 100,
+                "dart_std": 0.05,
+                "epochs": 20,
+                "batch_size": 64,
+                "learning_rate": 3e-4,
+                "shift_px": 4,
+                "channels": [16, 32, 32, 32],
+                "hidden": [256, 256],
+                "max_memory_gb": 8.0,
+            },
+        },
+        REACH: {"algo": {"dart_std": 0.15, "demos": 60}},
+    },
+    "dagger": {
+        "default": {
+            "env": _PIXEL_ENV,
+            "n_envs": 4,
+            "torch_threads": 2,
+            "eval_episodes": 20,
+            "algo": {
+                "demos": 60,
+                "dart_std": 0.05,
+                "epochs": 20,
+                "batch_size": 64,
+                "learning_rate": 3e-4,
+                "shift_px": 4,
+                "channels": [16, 32, 32, 32],
+                "hidden": [256, 256],
+                "max_memory_gb": 8.0,
+                "rounds": 3,
+                "episodes_per_round": 20,
+                "round_epochs": 8,
+                "beta0": 0.5,
+                "beta_decay": 0.5,
+            },
+        },
+        REACH: {"algo": {"dart_std": 0.15}},
+    },
+}
+"""The pixel students' recipes (:mod:`gym_soarm.rl.pixels`): the same keys as the state
+imitation recipes, the network given by ``channels`` (the four convolutions of each
+camera's encoder) and ``hidden`` (the MLP), ``shift_px`` (random-shift augmentation) and
+``max_memory_gb`` (the bound on the stored frames)."""
+
+
+def pixel_recipe(algo: str, task: str) -> dict[str, Any]:
+    """The settings of a pixel student of ``algo`` (``"bc"`` or ``"dagger"``) on ``task``.
+
+    Raises:
+        ValueError: ``algo`` is not one of :data:`IMITATION`.
+    """
+    if algo not in PIXEL_HYPERPARAMS:
+        raise ValueError(
+            f"a pixel student trains with {', '.join(IMITATION)}; got {algo!r}. Pass --algo bc."
+        )
+    return _merged(PIXEL_HYPERPARAMS[algo], task)
+
+
+def _merged(table: dict[str, dict[str, Any]], task: str) -> dict[str, Any]:
+    merged = copy.deepcopy(table["default"])
+    for key, value in copy.deepcopy(table.get(task, {})).items():
+        if key in ("env", "algo", "init"):
+            merged[key] = {**merged[key], **value}
+        else:
+            merged[key] = value
+    return merged
+
+
 def recipe(algo: str, task: str) -> dict[str, Any]:
     """The settings of ``algo`` on ``task``: the algorithm's default merged with the task's row.
 
@@ -201,11 +286,4 @@ def recipe(algo: str, task: str) -> dict[str, Any]:
         raise ValueError(
             f"algo must be one of {', '.join(TRAINERS)}; got {algo!r}. Pass e.g. --algo ppo."
         )
-    table = HYPERPARAMS[algo]
-    merged = copy.deepcopy(table["default"])
-    for key, value in copy.deepcopy(table.get(task, {})).items():
-        if key in ("env", "algo", "init"):
-            merged[key] = {**merged[key], **value}
-        else:
-            merged[key] = value
-    return merged
+    return _merged(HYPERPARAMS[algo], task)

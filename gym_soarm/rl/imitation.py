@@ -72,7 +72,14 @@ from gym_soarm.rl.evaluation import (
     require_sb3,
     score,
 )
-from gym_soarm.rl.hyperparams import IMITATION, recipe
+from gym_soarm.rl.hyperparams import IMITATION, pixel_recipe, recipe
+from gym_soarm.rl.pixels import (
+    PIXEL_MODEL_FILE,
+    PIXEL_OBS_TYPES,
+    check_pixel_settings,
+    is_pixel_env,
+    train_pixels,
+)
 from gym_soarm.settings import merge_keywords
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
@@ -440,9 +447,12 @@ def train_imitation(
     eval_episodes: int | None = None,
     hyperparams: dict[str, Any] | None = None,
     env: Mapping[str, Any] | None = None,
+    device: str = "cpu",
 ) -> Any:
-    """Train ``algo`` (``"bc"`` or ``"dagger"``) on ``task`` from its scripted expert and
-    write the policy folder (see the module's documentation).
+    """Train ``algo`` (``"bc"`` or ``"dagger"``) on ``task`` from its expert and write the
+    policy folder (see the module's documentation). With camera observations in ``env``
+    (``obs_type="pixels_agent_pos"``) the student learns from pixels
+    (:mod:`gym_soarm.rl.pixels`).
 
     Every argument is checked before anything is built or written.
 
@@ -455,6 +465,8 @@ def train_imitation(
         hyperparams: values that replace the recipe's ``algo`` keys (``{"demos": 20}``).
         env: ``gym.make`` keywords over the recipe's environment (see
             :func:`gym_soarm.rl.training.train`).
+        device: where a pixel student trains (``"cpu"``, ``"cuda"``, ``"cuda:1"``);
+            state policies train on the CPU.
 
     Returns:
         A :class:`gym_soarm.rl.training.TrainResult` (``env_steps``: the environment
@@ -471,8 +483,12 @@ def train_imitation(
             "gym_soarm.rl.training.train)."
         )
     spec = get_task(task)  # ValueError naming the registered tasks
-    settings = recipe(algo, spec.name)
+    pixels = is_pixel_env(env or {})
+    settings = pixel_recipe(algo, spec.name) if pixels else recipe(algo, spec.name)
     settings["env"] = merge_keywords(settings["env"], spec.name, env)
+    if pixels:
+        check_pixel_student(spec, settings["env"])
+    check_device(device, pixels)
     seed = check_int("seed", seed, 0)
     if eval_episodes is not None:
         settings["eval_episodes"] = eval_episodes
@@ -484,13 +500,15 @@ def train_imitation(
                 f"{', '.join(sorted(settings['algo']))}."
             )
         settings["algo"].update(copy.deepcopy(hyperparams))
-    settings = check_settings(algo, settings)
+    settings = check_pixel_settings(algo, settings) if pixels else check_settings(algo, settings)
     params = settings["algo"]
     out_path = Path(out)
     if out_path.exists() and not out_path.is_dir():
         raise ValueError(f"out must be a folder; {str(out_path)!r} is a file. Pass a new folder.")
     sb3 = require_sb3()
     pyplot()
+    if pixels:
+        return _train_pixel_student(algo, spec, out_path, seed, settings, device)
     import torch
     from stable_baselines3.common.vec_env import DummyVecEnv
 
@@ -700,6 +718,57 @@ def train_imitation(
         env_steps=int(state["env_steps"]),
         wall_s=time.perf_counter() - started,
         success_rate=state["rate"],
+        interrupted=stop.interrupted,
+    )
+
+
+def check_device(device: Any, pixels: bool) -> None:
+    """A ValueError unless ``device`` is a torch device name this trainer can use."""
+    if not isinstance(device, str) or not (
+        device == "cpu" or device == "cuda" or (device.startswith("cuda:") and device[5:].isdigit())
+    ):
+        raise ValueError(f"device must be 'cpu', 'cuda' or 'cuda:N'; got {device!r}.")
+    if device != "cpu" and not pixels:
+        raise ValueError(
+            f"device {device!r}: state policies train on the CPU (their networks are small); "
+            "a GPU serves pixel students (--obs-type pixels_agent_pos). Drop --device."
+        )
+
+
+def check_pixel_student(spec: Any, env_kwargs: Mapping[str, Any]) -> None:
+    """A ValueError unless a pixel student can learn ``spec`` with ``env_kwargs``: camera
+    images beside ``agent_pos``, and a state expert to label its states."""
+    obs_type = env_kwargs.get("obs_type")
+    if obs_type not in PIXEL_OBS_TYPES:
+        raise ValueError(
+            f"a pixel student learns from obs_type {' or '.join(PIXEL_OBS_TYPES)} (the cameras "
+            f"and the measured joints); got {obs_type!r}. Pass --obs-type pixels_agent_pos."
+        )
+    if spec.state_expert is None:
+        raise ValueError(
+            f"a pixel student is taught by its task's state expert; {spec.name} has none (only "
+            "a timed script). Give the task a state expert (TaskSpec.state_expert), or train "
+            "from the state vector."
+        )
+
+
+def _train_pixel_student(
+    algo: str, spec: Any, out_path: Path, seed: int, settings: dict[str, Any], device: str
+) -> Any:
+    """:func:`gym_soarm.rl.pixels.train_pixels` in a run folder, with Ctrl-C handling."""
+    started = time.perf_counter()
+    out_path.mkdir(parents=True, exist_ok=True)
+    for stale in (MODEL_FILE, NORMALIZE_FILE, DEMOS_FILE, CURVE_CSV, CURVE_PNG, PIXEL_MODEL_FILE):
+        (out_path / stale).unlink(missing_ok=True)
+    with StopOnInterrupt() as stop:
+        steps, rate = train_pixels(algo, spec, out_path, seed, settings, stop, device)
+        if stop():
+            logger.warning("%s from pixels: interrupted; the checkpoint and the curve are kept", algo)
+    return TrainResult(
+        out=out_path,
+        env_steps=steps,
+        wall_s=time.perf_counter() - started,
+        success_rate=rate,
         interrupted=stop.interrupted,
     )
 

@@ -1,0 +1,673 @@
+"""A pixel student taught by the state expert: behaviour cloning and DAgger from the cameras.
+
+``python -m gym_soarm.train --algo bc|dagger --task T --obs-type pixels_agent_pos
+--camera-config front_wrist --observation-height 96 --observation-width 128 --out DIR``
+trains a policy that sees only what a real arm gives: the camera images and ``agent_pos``
+(the six measured joints). The task's state expert (:func:`gym_soarm.expert.make_expert`)
+reads the simulation and labels every state the student visits: the demonstrations (DART
+noise on the executed action, the clean label recorded) and, for DAgger, the states the
+student itself drives the arm into.
+
+The network (:func:`build_network`): one small convolutional encoder per camera (four
+3x3/5x5 convolutions, two of stride 2) ending in a spatial softmax, whose keypoints (x, y of
+each channel's soft arg-max) sit beside the normalised ``agent_pos``, then a two-layer MLP
+to the action (the recipe's normalised ``joint_delta``). Training augments the images with a
+random shift (DrQ: pad by ``shift_px`` with the edge pixels, crop back at a random offset).
+
+Frames are stored once, as uint8 at the learner's size, in a :class:`FrameStore` whose
+size is bounded before anything runs: the recipe's ``max_memory_gb`` against the worst case
+(every episode of the run at its step limit); a run that could exceed it is refused with
+the figure and how to lower it. Each image is rendered once: the observation the
+environment returns is the one stored and the one the student acts on.
+
+The policy folder holds ``model.pt`` (the network's weights, its layout and the
+``agent_pos`` statistics), ``settings.json`` (``"policy": "pixels"``, the environment with
+its cameras and image size), ``curve.csv``/``curve.png``; :class:`PixelPolicy` loads it
+for ``python -m gym_soarm.evaluate``, refusing observations of other cameras or sizes.
+DAgger keeps the round that scored best on the protocol.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import logging
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gym_soarm import __version__
+from gym_soarm.expert import make_expert
+from gym_soarm.validation import check_int, check_number
+
+logger = logging.getLogger(__name__)
+
+PIXEL_MODEL_FILE = "model.pt"
+PIXEL_POLICY = "pixels"
+"""The ``policy`` field of a pixel policy's ``settings.json``."""
+PIXEL_OBS_TYPES: tuple[str, ...] = ("pixels_agent_pos",)
+"""The observation types a pixel student learns from (the cameras and ``agent_pos``)."""
+AGENT_POS_STD_FLOOR = 1e-2
+"""The smallest standard deviation of an ``agent_pos`` value in the normalisation (rad)."""
+
+
+def is_pixel_env(env_kwargs: Mapping[str, Any]) -> bool:
+    """Whether ``gym.make`` keywords ask for camera observations."""
+    return str(env_kwargs.get("obs_type", "state")).startswith("pixels")
+
+
+# --------------------------------------------------------------------------- data
+
+
+class FrameStore:
+    """Growable arrays of expert-labelled steps: uint8 frames per camera, ``agent_pos``,
+    the expert's label, the executed action, the episode and the round of each step.
+
+    Capacity grows by doubling up to ``max_samples`` (a ValueError past it), so the
+    memory held is at most :meth:`bytes_per_sample` times twice the samples stored.
+    """
+
+    def __init__(
+        self,
+        cameras: Sequence[str],
+        height: int,
+        width: int,
+        act_dim: int,
+        max_samples: int,
+        pos_dim: int = 6,
+    ) -> None:
+        self.cameras = tuple(cameras)
+        self.shape = (height, width, 3)
+        self.act_dim = act_dim
+        self.pos_dim = pos_dim
+        self.max_samples = max_samples
+        self.size = 0
+        self._capacity = 0
+        self.frames: dict[str, np.ndarray] = {}
+        self.agent_pos = np.zeros((0, pos_dim), np.float32)
+        self.labels = np.zeros((0, act_dim), np.float32)
+        self.executed = np.zeros((0, act_dim), np.float32)
+        self.episode = np.zeros(0, np.int64)
+        self.round = np.zeros(0, np.int64)
+        self._grow(256)
+
+    @staticmethod
+    def bytes_per_sample(n_cameras: int, height: int, width: int, act_dim: int = 6) -> int:
+        """Bytes one stored step takes: its frames, ``agent_pos``, two actions, two ids."""
+        return n_cameras * height * width * 3 + 4 * (6 + 2 * act_dim) + 16
+
+    def __len__(self) -> int:
+        return self.size
+
+    def _grow(self, capacity: int) -> None:
+        capacity = min(capacity, self.max_samples)
+        n = self.size
+
+        def grown(old: np.ndarray | None, shape: tuple[int, ...], dtype: Any) -> np.ndarray:
+            new = np.zeros((capacity, *shape), dtype)
+            if old is not None and n:
+                new[:n] = old[:n]
+            return new
+
+        for camera in self.cameras:
+            self.frames[camera] = grown(self.frames.get(camera), self.shape, np.uint8)
+        self.agent_pos = grown(self.agent_pos, (self.pos_dim,), np.float32)
+        self.labels = grown(self.labels, (self.act_dim,), np.float32)
+        self.executed = grown(self.executed, (self.act_dim,), np.float32)
+        self.episode = grown(self.episode, (), np.int64)
+        self.round = grown(self.round, (), np.int64)
+        self._capacity = capacity
+
+    def add(
+        self, obs: dict[str, Any], label: np.ndarray, executed: np.ndarray, episode: int, round_: int
+    ) -> None:
+        """Store one step (its images are copied)."""
+        if self.size == self._capacity:
+            if self.size >= self.max_samples:
+                raise ValueError(
+                    f"the frame store is full ({self.max_samples} steps); raise max_memory_gb "
+                    "or collect fewer episodes."
+                )
+            self._grow(2 * self._capacity)
+        i = self.size
+        for camera in self.cameras:
+            self.frames[camera][i] = obs["pixels"][camera]
+        self.agent_pos[i] = obs["agent_pos"]
+        self.labels[i] = label
+        self.executed[i] = executed
+        self.episode[i] = episode
+        self.round[i] = round_
+        self.size += 1
+
+    def nbytes(self) -> int:
+        """Bytes the arrays hold now (their capacity, not just the samples stored)."""
+        arrays = [*self.frames.values(), self.agent_pos, self.labels, self.executed]
+        return sum(a.nbytes for a in arrays) + self.episode.nbytes + self.round.nbytes
+
+
+# --------------------------------------------------------------------------- network
+
+
+def build_network(
+    cameras: Sequence[str],
+    act_dim: int,
+    channels: Sequence[int] = (16, 32, 32, 32),
+    hidden: Sequence[int] = (256, 256),
+    pos_dim: int = 6,
+) -> Any:
+    """The student: an encoder per camera (convolutions, spatial softmax), ``agent_pos``
+    beside their keypoints, an MLP to the action. Its ``forward(images, agent_pos)`` takes
+    a dict of float images (N, 3, H, W) in [0, 1] and normalised joint angles (N, 6)."""
+    import torch
+    from torch import nn
+
+    class SpatialSoftmax(nn.Module):
+        """Each channel's soft arg-max: (x, y) in [-1, 1], 2 values per channel."""
+
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            n, c, h, w = x.shape
+            p = torch.softmax(x.flatten(2), -1).view(n, c, h, w)
+            ys = torch.linspace(-1.0, 1.0, h, device=x.device)
+            xs = torch.linspace(-1.0, 1.0, w, device=x.device)
+            return torch.cat([(p.sum(2) * xs).sum(2), (p.sum(3) * ys).sum(2)], 1)
+
+    def encoder() -> nn.Module:
+        c1, c2, c3, c4 = channels
+        return nn.Sequential(
+            nn.Conv2d(3, c1, 5, stride=2, padding=2),
+            nn.ReLU(),
+            nn.Conv2d(c1, c2, 3, stride=2, padding=1),
+            nn.ReLU(),
+            nn.Conv2d(c2, c3, 3, padding=1),
+            nn.ReLU(),
+            nn.Conv2d(c3, c4, 3, padding=1),
+            SpatialSoftmax(),
+        )
+
+    class PixelNet(nn.Module):
+        def __init__(self) -> None:
+            super().__init__()
+            self.cameras = tuple(cameras)
+            self.encoders = nn.ModuleDict({camera: encoder() for camera in self.cameras})
+            layers: list[nn.Module] = []
+            width = 2 * channels[-1] * len(self.cameras) + pos_dim
+            for units in hidden:
+                layers += [nn.Linear(width, units), nn.ReLU()]
+                width = units
+            layers.append(nn.Linear(width, act_dim))
+            self.head = nn.Sequential(*layers)
+
+        def forward(self, images: dict[str, torch.Tensor], agent_pos: torch.Tensor) -> torch.Tensor:
+            features = [self.encoders[camera](images[camera] - 0.5) for camera in self.cameras]
+            return self.head(torch.cat([*features, agent_pos], 1))
+
+    return PixelNet()
+
+
+def random_shift(images: Any, pad: int, generator: Any) -> Any:
+    """Shift each image of a (N, C, H, W) batch by up to ``pad`` pixels (edge padding,
+    integer offsets drawn from ``generator``): DrQ's augmentation."""
+    import torch
+    import torch.nn.functional as F
+
+    if pad <= 0:
+        return images
+    n, _, h, w = images.shape
+    padded = F.pad(images, (pad, pad, pad, pad), mode="replicate")
+    shift = torch.randint(0, 2 * pad + 1, (n, 2), generator=generator)
+    rows = (torch.arange(h)[None, :] + shift[:, :1]).view(n, 1, h, 1).expand(n, 1, h, w + 2 * pad)
+    picked = torch.gather(padded, 2, rows.expand(n, images.shape[1], h, w + 2 * pad))
+    cols = (torch.arange(w)[None, :] + shift[:, 1:]).view(n, 1, 1, w).expand(n, images.shape[1], h, w)
+    return torch.gather(picked, 3, cols)
+
+
+def to_tensors(
+    frames: Mapping[str, np.ndarray], agent_pos: np.ndarray, mean: np.ndarray, std: np.ndarray, device: Any
+) -> tuple[dict[str, Any], Any]:
+    """uint8 (N, H, W, 3) frames and raw ``agent_pos`` as the network's inputs."""
+    import torch
+
+    images = {
+        camera: torch.as_tensor(np.ascontiguousarray(array), device=device)
+        .permute(0, 3, 1, 2)
+        .float()
+        .div_(255.0)
+        for camera, array in frames.items()
+    }
+    pos = torch.as_tensor((np.asarray(agent_pos, np.float32) - mean) / std, device=device)
+    return images, pos
+
+
+# --------------------------------------------------------------------------- policy
+
+
+class PixelPolicy:
+    """A pixel policy folder (or a network being trained) acting on observations.
+
+    ``policy(obs, info)`` gives the action of one observation; :meth:`act` of a list of
+    them. Observations of other cameras or image sizes than it was trained on are refused.
+    """
+
+    def __init__(
+        self,
+        net: Any,
+        cameras: Sequence[str],
+        image_shape: tuple[int, int],
+        mean: np.ndarray,
+        std: np.ndarray,
+        device: Any = "cpu",
+    ) -> None:
+        self.net = net
+        self.cameras = tuple(cameras)
+        self.image_shape = tuple(image_shape)
+        self.mean = np.asarray(mean, np.float32)
+        self.std = np.asarray(std, np.float32)
+        self.device = device
+
+    @classmethod
+    def load(cls, folder: str | os.PathLike[str], device: Any = "cpu") -> PixelPolicy:
+        """Load the ``model.pt`` of a pixel policy folder."""
+        import torch
+
+        saved = torch.load(Path(folder) / PIXEL_MODEL_FILE, map_location=device, weights_only=True)
+        layout = saved["layout"]
+        net = build_network(
+            layout["cameras"], layout["act_dim"], layout["channels"], layout["hidden"]
+        )
+        net.load_state_dict(saved["weights"])
+        net.to(device).eval()
+        return cls(
+            net,
+            layout["cameras"],
+            (layout["height"], layout["width"]),
+            saved["mean"].numpy(),
+            saved["std"].numpy(),
+            device,
+        )
+
+    def check(self, obs: Any) -> None:
+        """A ValueError unless ``obs`` holds this policy's cameras at its image size."""
+        pixels = obs.get("pixels") if isinstance(obs, Mapping) else None
+        if not isinstance(pixels, Mapping) or "agent_pos" not in obs:
+            raise ValueError(
+                "a pixel policy acts on obs_type='pixels_agent_pos' observations (a dict with "
+                f"'pixels' and 'agent_pos'); got {type(obs).__name__}"
+                + (f" with keys {sorted(obs)}" if isinstance(obs, Mapping) else "")
+                + ". Make the environment with the policy's settings.json env."
+            )
+        got = {camera: tuple(np.shape(image)[:2]) for camera, image in pixels.items()}
+        wanted = dict.fromkeys(self.cameras, self.image_shape)
+        if got != wanted:
+            raise ValueError(
+                f"this policy was trained on cameras {list(self.cameras)} at "
+                f"{self.image_shape[0]}x{self.image_shape[1]}; the observation has "
+                + ", ".join(f"{camera} at {h}x{w}" for camera, (h, w) in got.items())
+                + ". Evaluate it with the camera_config, observation_height and "
+                "observation_width of its settings.json, or train one for these cameras."
+            )
+
+    def act(self, observations: Sequence[Any]) -> np.ndarray:
+        """The actions (float32, clipped to [-1, 1]) of a list of observations."""
+        import torch
+
+        for obs in observations:
+            self.check(obs)
+        frames = {c: np.stack([obs["pixels"][c] for obs in observations]) for c in self.cameras}
+        pos = np.stack([obs["agent_pos"] for obs in observations])
+        images, pos_t = to_tensors(frames, pos, self.mean, self.std, self.device)
+        with torch.no_grad():
+            action = self.net(images, pos_t).cpu().numpy()
+        return np.clip(action, -1.0, 1.0).astype(np.float32)
+
+    def __call__(self, obs: Any, info: dict[str, Any] | None = None) -> np.ndarray:
+        return self.act([obs])[0]
+
+
+# --------------------------------------------------------------------------- settings
+
+
+def check_pixel_settings(algo: str, settings: dict[str, Any]) -> dict[str, Any]:
+    """Check the numbers of a pixel bc/dagger recipe; ValueError naming the key."""
+    params = settings["algo"]
+    settings["n_envs"] = check_int("n_envs", settings["n_envs"], 1)
+    settings["torch_threads"] = check_int("torch_threads", settings["torch_threads"], 1)
+    settings["eval_episodes"] = check_int("eval_episodes", settings["eval_episodes"], 1)
+    params["demos"] = check_int("demos", params["demos"], 1, 999)
+    params["dart_std"] = check_number("dart_std", params["dart_std"], 0.0)
+    params["epochs"] = check_int("epochs", params["epochs"], 1)
+    params["batch_size"] = check_int("batch_size", params["batch_size"], 1)
+    params["shift_px"] = check_int("shift_px", params["shift_px"], 0)
+    for key in ("learning_rate", "max_memory_gb"):
+        params[key] = check_number(key, params[key], 0.0)
+        if params[key] == 0:
+            raise ValueError(f"{key} must be a number > 0; got 0.")
+    for key, size in (("channels", 4), ("hidden", None)):
+        value = params[key]
+        if (
+            not isinstance(value, (list, tuple))
+            or not value
+            or (size is not None and len(value) != size)
+            or any(isinstance(u, bool) or not isinstance(u, int) or u < 1 for u in value)
+        ):
+            count = f"{size} " if size else ""
+            raise ValueError(
+                f"{key} must be a list of {count}layer widths >= 1 (e.g. "
+                f"{list(PIXEL_DEFAULTS[key])}); got {value!r}."
+            )
+        params[key] = list(value)
+    if algo == "dagger":
+        params["rounds"] = check_int("rounds", params["rounds"], 1, 98)
+        params["episodes_per_round"] = check_int(
+            "episodes_per_round", params["episodes_per_round"], 1, 999
+        )
+        params["round_epochs"] = check_int("round_epochs", params["round_epochs"], 1)
+        for key in ("beta0", "beta_decay"):
+            value = check_number(key, params[key], 0.0)
+            if value > 1:
+                raise ValueError(f"{key} must be a number from 0 to 1; got {value!r}.")
+            params[key] = value
+    return settings
+
+
+PIXEL_DEFAULTS: dict[str, Any] = {"channels": (16, 32, 32, 32), "hidden": (256, 256)}
+
+
+# --------------------------------------------------------------------------- trainer
+
+
+@dataclasses.dataclass
+class _Run:
+    """What a pixel run holds while it trains."""
+
+    store: FrameStore
+    net: Any = None
+    optimizer: Any = None
+    mean: np.ndarray | None = None
+    std: np.ndarray | None = None
+    env_steps: int = 0
+    episodes: int = 0
+    rate: float | None = None
+    best: float = -1.0
+
+
+def worst_case_samples(algo: str, params: Mapping[str, Any], max_episode_steps: int) -> int:
+    """Steps a run stores if every episode lasts its step limit."""
+    episodes = params["demos"]
+    if algo == "dagger":
+        episodes += params["rounds"] * params["episodes_per_round"]
+    return episodes * max_episode_steps
+
+
+def train_pixels(
+    algo: str,
+    spec: Any,
+    out_path: Path,
+    seed: int,
+    settings: dict[str, Any],
+    stop: Callable[[], bool],
+    device: str = "cpu",
+) -> tuple[int, float | None]:
+    """Train a pixel student of ``spec``'s state expert into ``out_path`` (see the
+    module's documentation); ``settings`` is the checked recipe (``env``, ``algo`` ...).
+
+    Returns:
+        The environment steps of the training episodes and the last success rate.
+    """
+    import torch  # before any GL context: see docs/learning.md (torch and Mesa's LLVM)
+
+    from gym_soarm.rl.curves import write_curve_png
+    from gym_soarm.rl.evaluation import POLICY_FORMAT, SETTINGS_FILE, make_env, score
+    from gym_soarm.rl.imitation import (
+        CURVE_CSV,
+        CURVE_FIELDS,
+        CURVE_PNG,
+        ROUND_STRIDE,
+        SEED_STRIDE,
+        training_seeds,
+    )
+    from gym_soarm.settings import EnvSettings
+    from gym_soarm.tasks.suites import EVAL_SEED
+
+    params = settings["algo"]
+    env_kwargs = dict(settings["env"])
+    resolved = EnvSettings.from_kwargs(task=spec.name, **env_kwargs)
+    cameras = tuple(resolved.camera_config)
+    height, width = resolved.observation_height, resolved.observation_width
+    per_sample = FrameStore.bytes_per_sample(len(cameras), height, width)
+    worst = worst_case_samples(algo, params, spec.max_episode_steps)
+    budget = int(params["max_memory_gb"] * 2**30 / per_sample)
+    if worst > budget:
+        raise ValueError(
+            f"this run could store {worst} steps of {per_sample} bytes "
+            f"({worst * per_sample / 2**30:.1f} GiB: {len(cameras)} cameras at {height}x{width}), "
+            f"over max_memory_gb={params['max_memory_gb']}; collect fewer episodes, use smaller "
+            "images or raise max_memory_gb (--hyperparams max_memory_gb=N)."
+        )
+    logger.info(
+        "pixel store: %d bytes a step, at most %d steps (%.2f GiB)",
+        per_sample,
+        worst,
+        worst * per_sample / 2**30,
+    )
+    torch.set_num_threads(settings["torch_threads"])
+    torch.manual_seed(seed)
+    # The first optimizer imports its optional compilers now, before a GL context exists.
+    torch.optim.Adam([torch.zeros(1, requires_grad=True)])
+
+    envs = [make_env(spec.name, env_kwargs) for _ in range(settings["n_envs"])]
+    act_dim = envs[0].action_space.shape[0]
+    run = _Run(FrameStore(cameras, height, width, act_dim, min(worst, budget)))
+    rng = np.random.default_rng([seed, 25])
+    generator = torch.Generator().manual_seed(seed)
+    started = time.perf_counter()
+    rows: list[dict[str, Any]] = []
+    title = f"{'BC' if algo == 'bc' else 'DAgger'} from pixels on {spec.name}, seed {seed}"
+    observation_names = list(envs[0].unwrapped.observation_names)
+
+    def policy() -> PixelPolicy:
+        return PixelPolicy(run.net, cameras, (height, width), run.mean, run.std, device)
+
+    def write_settings() -> None:
+        (out_path / SETTINGS_FILE).write_text(
+            json.dumps(
+                {
+                    "format": POLICY_FORMAT,
+                    "policy": PIXEL_POLICY,
+                    "algo": algo,
+                    "task": spec.name,
+                    "seed": seed,
+                    "steps": run.env_steps,
+                    "env": env_kwargs,
+                    "cameras": list(cameras),
+                    "image_size": [height, width],
+                    "observation_names": observation_names,
+                    "recipe": settings,
+                    "training_seeds": f"{SEED_STRIDE} * (seed + 1) + {ROUND_STRIDE} * round + k",
+                    "gym_soarm_version": __version__,
+                },
+                indent=2,
+            )
+            + "\n"
+        )
+
+    def save_model() -> None:
+        layout = {
+            "cameras": list(cameras),
+            "height": height,
+            "width": width,
+            "act_dim": act_dim,
+            "channels": list(params["channels"]),
+            "hidden": list(params["hidden"]),
+        }
+        weights = {k: v.detach().cpu() for k, v in run.net.state_dict().items()}
+        torch.save(
+            {
+                "layout": layout,
+                "weights": weights,
+                "mean": torch.as_tensor(run.mean),
+                "std": torch.as_tensor(run.std),
+            },
+            out_path / PIXEL_MODEL_FILE,
+        )
+
+    def gather(round_: int, episodes: int, beta: float) -> None:
+        experts = [make_expert(env) for env in envs]
+        pending = training_seeds(seed, round_, episodes)
+        slots: list[list[Any] | None] = [None] * len(envs)
+        successes = 0
+
+        def start(i: int) -> None:
+            if not pending:
+                slots[i] = None
+                return
+            obs, info = envs[i].reset(seed=pending.pop(0))
+            slots[i] = [obs, info, run.episodes]
+            run.episodes += 1
+
+        for i in range(len(envs)):
+            start(i)
+        learner = policy() if run.net is not None and beta < 1.0 else None
+        while any(slot is not None for slot in slots) and not stop():
+            active = [i for i in range(len(envs)) if slots[i] is not None]
+            labels = np.clip(
+                np.stack([np.asarray(experts[i](*slots[i][:2]), np.float32) for i in active]),
+                -1.0,
+                1.0,
+            )
+            executed = labels
+            if params["dart_std"] > 0:
+                noise = rng.normal(0.0, params["dart_std"], labels.shape).astype(np.float32)
+                executed = np.clip(labels + noise, -1.0, 1.0)
+            if learner is not None:
+                use = rng.random(len(active)) >= beta
+                if use.any():
+                    executed = executed.copy()
+                    executed[use] = learner.act([slots[i][0] for i, u in zip(active, use) if u])
+            for j, i in enumerate(active):
+                run.store.add(slots[i][0], labels[j], executed[j], slots[i][2], round_)
+                obs, _, terminated, truncated, info = envs[i].step(executed[j])
+                run.env_steps += 1
+                if terminated or truncated:
+                    successes += bool(info.get("is_success", False))
+                    start(i)
+                else:
+                    slots[i][0], slots[i][1] = obs, info
+        logger.info(
+            "%s: round %d, %d steps stored (%.2f GiB held), beta %.2f, %d executed successes",
+            title,
+            round_,
+            len(run.store),
+            run.store.nbytes() / 2**30,
+            beta,
+            successes,
+        )
+
+    def fit(epochs: int) -> float:
+        store = run.store
+        n = len(store)
+        run.net.train()
+        loss_value = float("nan")
+        for _ in range(epochs):
+            order = torch.randperm(n, generator=generator).numpy()
+            total = 0.0
+            for begin in range(0, n, params["batch_size"]):
+                index = np.sort(order[begin : begin + params["batch_size"]])
+                images, pos = to_tensors(
+                    {c: store.frames[c][index] for c in cameras},
+                    store.agent_pos[index],
+                    run.mean,
+                    run.std,
+                    device,
+                )
+                images = {c: random_shift(x, params["shift_px"], generator) for c, x in images.items()}
+                target = torch.as_tensor(store.labels[index], device=device)
+                loss = torch.nn.functional.mse_loss(run.net(images, pos), target)
+                run.optimizer.zero_grad()
+                loss.backward()
+                run.optimizer.step()
+                total += loss.item() * len(index)
+            loss_value = total / n
+            if stop():
+                break
+        run.net.eval()
+        return loss_value
+
+    def evaluate(round_: int, loss: float) -> None:
+        result = score(spec.name, env_kwargs, policy(), settings["eval_episodes"], EVAL_SEED)
+        run.rate = result["success_rate"]
+        rows.append(
+            {
+                "round": round_,
+                "env_steps": run.env_steps,
+                "samples": len(run.store),
+                "wall_s": round(time.perf_counter() - started, 2),
+                "success_rate": run.rate,
+                "mean_return": round(result["mean_return"], 4),
+                "episodes": settings["eval_episodes"],
+            }
+        )
+        if run.rate >= run.best:  # DAgger keeps its best round
+            run.best = run.rate
+            save_model()
+        write_settings()
+        with open(out_path / CURVE_CSV, "w", newline="") as stream:
+            writer = csv.DictWriter(stream, fieldnames=CURVE_FIELDS)
+            writer.writeheader()
+            writer.writerows(rows)
+        write_curve_png(rows, out_path / CURVE_PNG, title)
+        logger.info(
+            "%s: round %d, %d samples, loss %.4f, %.0f s, success %.0f %%",
+            title,
+            round_,
+            len(run.store),
+            loss,
+            rows[-1]["wall_s"],
+            100 * run.rate,
+        )
+
+    try:
+        write_settings()
+        gather(0, params["demos"], 1.0)
+        if stop() or not len(run.store):
+            return run.env_steps, None
+        pos = run.store.agent_pos[: len(run.store)]
+        run.mean = pos.mean(axis=0).astype(np.float32)
+        run.std = np.maximum(pos.std(axis=0), AGENT_POS_STD_FLOOR).astype(np.float32)
+        run.net = build_network(cameras, act_dim, params["channels"], params["hidden"]).to(device)
+        run.optimizer = torch.optim.Adam(run.net.parameters(), lr=params["learning_rate"])
+        loss = fit(params["epochs"])
+        if not stop():
+            evaluate(0, loss)
+        for round_ in range(1, (params["rounds"] if algo == "dagger" else 0) + 1):
+            if stop():
+                break
+            gather(round_, params["episodes_per_round"], params["beta0"] * params["beta_decay"] ** round_)
+            if stop():
+                break
+            loss = fit(params["round_epochs"])
+            if not stop():
+                evaluate(round_, loss)
+        if stop() and run.net is not None and not (out_path / PIXEL_MODEL_FILE).exists():
+            save_model()
+            write_settings()
+    finally:
+        for env in envs:
+            env.close()
+    return run.env_steps, run.rate
+
+
+__all__ = [
+    "PIXEL_MODEL_FILE",
+    "PIXEL_OBS_TYPES",
+    "FrameStore",
+    "PixelPolicy",
+    "build_network",
+    "is_pixel_env",
+    "random_shift",
+    "train_pixels",
+]
