@@ -763,7 +763,9 @@ def _train_pixel_student(
     with StopOnInterrupt() as stop:
         steps, rate = train_pixels(algo, spec, out_path, seed, settings, stop, device)
         if stop():
-            logger.warning("%s from pixels: interrupted; the checkpoint and the curve are kept", algo)
+            logger.warning(
+                "%s from pixels: interrupted; the checkpoint and the curve are kept", algo
+            )
     return TrainResult(
         out=out_path,
         env_steps=steps,

@@ -124,7 +124,12 @@ class FrameStore:
         self._capacity = capacity
 
     def add(
-        self, obs: dict[str, Any], label: np.ndarray, executed: np.ndarray, episode: int, round_: int
+        self,
+        obs: dict[str, Any],
+        label: np.ndarray,
+        executed: np.ndarray,
+        episode: int,
+        round_: int,
     ) -> None:
         """Store one step (its images are copied)."""
         if self.size == self._capacity:
@@ -213,21 +218,27 @@ def random_shift(images: Any, pad: int, generator: Any) -> Any:
     """Shift each image of a (N, C, H, W) batch by up to ``pad`` pixels (edge padding,
     integer offsets drawn from ``generator``): DrQ's augmentation."""
     import torch
-    import torch.nn.functional as F
+    from torch.nn import functional
 
     if pad <= 0:
         return images
     n, _, h, w = images.shape
-    padded = F.pad(images, (pad, pad, pad, pad), mode="replicate")
+    padded = functional.pad(images, (pad, pad, pad, pad), mode="replicate")
     shift = torch.randint(0, 2 * pad + 1, (n, 2), generator=generator)
     rows = (torch.arange(h)[None, :] + shift[:, :1]).view(n, 1, h, 1).expand(n, 1, h, w + 2 * pad)
     picked = torch.gather(padded, 2, rows.expand(n, images.shape[1], h, w + 2 * pad))
-    cols = (torch.arange(w)[None, :] + shift[:, 1:]).view(n, 1, 1, w).expand(n, images.shape[1], h, w)
+    cols = (
+        (torch.arange(w)[None, :] + shift[:, 1:]).view(n, 1, 1, w).expand(n, images.shape[1], h, w)
+    )
     return torch.gather(picked, 3, cols)
 
 
 def to_tensors(
-    frames: Mapping[str, np.ndarray], agent_pos: np.ndarray, mean: np.ndarray, std: np.ndarray, device: Any
+    frames: Mapping[str, np.ndarray],
+    agent_pos: np.ndarray,
+    mean: np.ndarray,
+    std: np.ndarray,
+    device: Any,
 ) -> tuple[dict[str, Any], Any]:
     """uint8 (N, H, W, 3) frames and raw ``agent_pos`` as the network's inputs."""
     import torch
@@ -547,7 +558,9 @@ def train_pixels(
                 use = rng.random(len(active)) >= beta
                 if use.any():
                     executed = executed.copy()
-                    executed[use] = learner.act([slots[i][0] for i, u in zip(active, use) if u])
+                    executed[use] = learner.act(
+                        [slots[i][0] for i, u in zip(active, use, strict=True) if u]
+                    )
             for j, i in enumerate(active):
                 run.store.add(slots[i][0], labels[j], executed[j], slots[i][2], round_)
                 obs, _, terminated, truncated, info = envs[i].step(executed[j])
@@ -584,7 +597,9 @@ def train_pixels(
                     run.std,
                     device,
                 )
-                images = {c: random_shift(x, params["shift_px"], generator) for c, x in images.items()}
+                images = {
+                    c: random_shift(x, params["shift_px"], generator) for c, x in images.items()
+                }
                 target = torch.as_tensor(store.labels[index], device=device)
                 loss = torch.nn.functional.mse_loss(run.net(images, pos), target)
                 run.optimizer.zero_grad()
@@ -646,7 +661,11 @@ def train_pixels(
         for round_ in range(1, (params["rounds"] if algo == "dagger" else 0) + 1):
             if stop():
                 break
-            gather(round_, params["episodes_per_round"], params["beta0"] * params["beta_decay"] ** round_)
+            gather(
+                round_,
+                params["episodes_per_round"],
+                params["beta0"] * params["beta_decay"] ** round_,
+            )
             if stop():
                 break
             loss = fit(params["round_epochs"])
