@@ -9,7 +9,13 @@ the expert's own episodes never visit, then the expert acts until the episode en
   0.2 to 0.4 m/s (it slides, tips or falls out of the jaws);
 * ``drop``: once the expert holds its object, the jaws are opened for 10 steps;
 * ``jaws``: the episode starts with the jaws half closed and the arm elsewhere (15 steps
-  of a random arm move with the gripper at 0.2 rad).
+  of a random arm move with the gripper at 0.2 rad);
+* ``shove``: after 15 to 60 expert steps, 12 steps of random absolute joint targets
+  (anywhere in the joints' ranges, whatever the control mode), then the expert again.
+  A shove that leaves an object off the table or out of the arm's reach
+  (:data:`REACH_M` from the shoulder pan axis) once it has come to rest
+  (:data:`SETTLE_STEPS` later, or when the episode ends if sooner), or an episode that
+  ends before the shove is over, is not counted (``applied`` False).
 
 Tasks without an object have no ``push``, those that grasp none no ``drop``. Every perturbation is drawn from the
 episode's seed, so a run is reproducible.
@@ -28,13 +34,39 @@ from gym_soarm.expert import EXPERT_KINDS, make_expert
 from gym_soarm.tasks import get_task
 from gym_soarm.validation import check_choice, check_int, check_subset
 
-PERTURBATIONS: tuple[str, ...] = ("random", "push", "drop", "jaws")
+PERTURBATIONS: tuple[str, ...] = ("random", "push", "drop", "jaws", "shove")
 """The perturbations :func:`evaluate_perturbed` knows."""
 
 PERTURBED_SEED = 5_000
 """Episode ``k`` of a perturbed run resets with seed ``PERTURBED_SEED + k`` (unseen seeds)."""
 
 _N_ARM = len(constants.ARM_JOINT_NAMES)
+SHOVE_STEPS = 12
+"""Steps of random absolute joint targets in a ``shove``."""
+SETTLE_STEPS = 50
+"""Steps after a shove (1 s) at which the objects must lie on the table and in reach
+for the episode to count: a rolling or falling object has come to rest by then."""
+REACH_M: tuple[float, float] = (0.08, 0.28)
+"""Horizontal distances from the shoulder pan axis where an object counts as in reach."""
+
+
+def _in_reach(env: gym.Env, objects: Sequence[str]) -> bool:
+    """Whether every object rests on the table within :data:`REACH_M` of the pan axis."""
+    physics = env.unwrapped.physics
+    for name in objects:
+        position = physics.object_position(name)
+        radius = float(np.hypot(*(position[:2] - np.asarray(constants.PAN_AXIS_XY_M))))
+        if position[2] < constants.TABLE_TOP_Z_M - 0.005 or not REACH_M[0] <= radius <= REACH_M[1]:
+            return False
+    return True
+
+
+def _random_targets_action(env: gym.Env, rng: np.random.Generator) -> np.ndarray:
+    """An action that sends the servos to random absolute targets within their ranges."""
+    base = env.unwrapped
+    low, high = base.physics.control_range()
+    targets = rng.uniform(low, high)
+    return base.control.action_for_targets(targets, np.asarray(base.commanded_targets))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,6 +100,8 @@ def _run(env: gym.Env, perturbation: str, seed: int, kind: str) -> PerturbedResu
     applied = False
     step = 0
     kick_at = int(rng.integers(20, 121))
+    shove_at = int(rng.integers(15, 61))
+    checked = False
     random_steps = int(rng.integers(10, 41))
     drop_left = 10
     env.action_space.seed(seed)
@@ -91,11 +125,19 @@ def _run(env: gym.Env, perturbation: str, seed: int, kind: str) -> PerturbedResu
         ):
             action, applied = _hold_action(env, expert.config.gripper_open_rad), True
             drop_left -= 1
+        elif perturbation == "shove" and shove_at <= step < shove_at + SHOVE_STEPS:
+            action, applied = _random_targets_action(env, rng), True
         if action is None:
             action = expert(obs, info)
         obs, _, terminated, truncated, info = env.step(action)
         step += 1
+        settled = step == shove_at + SHOVE_STEPS + SETTLE_STEPS
+        ended = terminated or truncated
+        if perturbation == "shove" and objects and applied and (settled or (ended and not checked)):
+            applied, checked = step >= shove_at + SHOVE_STEPS and _in_reach(env, objects), True
         if terminated or truncated:
+            if perturbation == "shove" and step < shove_at + SHOVE_STEPS:
+                applied = False
             return PerturbedResult(perturbation, seed, bool(info["is_success"]), applied)
 
 
@@ -123,7 +165,7 @@ def evaluate_perturbed(
         return [
             _run(env, perturbation, PERTURBED_SEED + k, kind)
             for perturbation in perturbations
-            if perturbation in ("random", "jaws")
+            if perturbation in ("random", "jaws", "shove")
             or (perturbation == "push" and objects)
             or (perturbation == "drop" and grasps)
             for k in range(episodes)
