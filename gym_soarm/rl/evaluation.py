@@ -174,6 +174,11 @@ class TrainedPolicy:
                 self._normalizer = pickle.load(stream)
             self._normalizer.training = False
 
+    def reset(self) -> None:
+        """Call after each ``env.reset``: a pixel policy forgets the last step's joints."""
+        if self._pixels is not None:
+            self._pixels.reset()
+
     def __call__(self, obs: Any, info: dict[str, Any] | None = None) -> np.ndarray:
         if self._pixels is not None:
             return self._pixels(obs, info)

@@ -744,6 +744,18 @@ def check_pixel_student(spec: Any, env_kwargs: Mapping[str, Any]) -> None:
             f"a pixel student learns from obs_type {' or '.join(PIXEL_OBS_TYPES)} (the cameras "
             f"and the measured joints); got {obs_type!r}. Pass --obs-type pixels_agent_pos."
         )
+    for key, wanted in (
+        ("control_mode", "joint_pos"),
+        ("normalize_actions", True),
+        ("units", "radians"),
+    ):
+        got = env_kwargs.get(key, wanted)
+        if got != wanted:
+            raise ValueError(
+                f"a pixel student acts with {key}={wanted!r} (normalised absolute joint targets "
+                f"in radians, its own last command among its inputs); got {key}={got!r}. Drop "
+                f"--{key.replace('_', '-')}."
+            )
     if spec.state_expert is None:
         raise ValueError(
             f"a pixel student is taught by its task's state expert; {spec.name} has none (only "

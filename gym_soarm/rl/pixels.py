@@ -10,8 +10,13 @@ student itself drives the arm into.
 
 The network (:func:`build_network`): one small convolutional encoder per camera (four
 3x3/5x5 convolutions, two of stride 2) ending in a spatial softmax, whose keypoints (x, y of
-each channel's soft arg-max) sit beside the normalised ``agent_pos``, then a two-layer MLP
-to the action (the recipe's normalised ``joint_delta``). Training augments the images with a
+each channel's soft arg-max) sit beside the normalised proprioception, then a two-layer
+MLP to the action. The proprioception is what a real arm's policy has: ``agent_pos``, its
+change over the last step (how fast the joints move) and the policy's own last command.
+The student sends absolute joint targets (``control_mode="joint_pos"``, normalised) and
+its network answers the change from its last command (scaled by :data:`RESIDUAL_SCALE`):
+the expert's next target depends on the servo targets it moves from, which the measured
+joints alone do not show (the recipe's normalised ``joint_delta``). Training augments the images with a
 random shift (DrQ: pad by ``shift_px`` with the edge pixels, crop back at a random offset).
 
 Frames are stored once, as uint8 at the learner's size, in a :class:`FrameStore` whose
@@ -52,8 +57,25 @@ PIXEL_POLICY = "pixels"
 """The ``policy`` field of a pixel policy's ``settings.json``."""
 PIXEL_OBS_TYPES: tuple[str, ...] = ("pixels_agent_pos",)
 """The observation types a pixel student learns from (the cameras and ``agent_pos``)."""
-AGENT_POS_STD_FLOOR = 1e-2
-"""The smallest standard deviation of an ``agent_pos`` value in the normalisation (rad)."""
+PROPRIO_STD_FLOOR: tuple[float, float, float] = (1e-2, 1e-3, 1e-2)
+"""The smallest standard deviation of a joint angle (rad), of its change over a step (rad)
+and of a command (normalised) in the normalisation."""
+PROPRIO_DIM = 18
+"""The student's proprioception: the six joint angles, their change over the last step
+and the last command (six normalised absolute targets)."""
+RESIDUAL_SCALE = 0.05
+"""The network's output times this is the change of the command (normalised units, about
+0.1 rad): outputs of order one for the expert's moves."""
+STUDENT_CONTROL = "joint_pos"
+"""The control mode a pixel student acts in (normalised absolute joint targets)."""
+
+
+def proprioception(agent_pos: Any, previous: Any, command: Any) -> np.ndarray:
+    """``agent_pos``, its change since ``previous`` (the last step's; itself at a reset)
+    and the last ``command``: (..., 18) float32."""
+    pos = np.asarray(agent_pos, np.float32)
+    change = pos - np.asarray(previous, np.float32)
+    return np.concatenate([pos, change, np.asarray(command, np.float32)], axis=-1)
 
 
 def is_pixel_env(env_kwargs: Mapping[str, Any]) -> bool:
@@ -65,8 +87,8 @@ def is_pixel_env(env_kwargs: Mapping[str, Any]) -> bool:
 
 
 class FrameStore:
-    """Growable arrays of expert-labelled steps: uint8 frames per camera, ``agent_pos``,
-    the expert's label, the executed action, the episode and the round of each step.
+    """Growable arrays of expert-labelled steps: uint8 frames per camera, the
+    proprioception (:func:`proprioception`), the expert's label, the executed action, the episode and the round of each step.
 
     Capacity grows by doubling up to ``max_samples`` (a ValueError past it), so the
     memory held is at most :meth:`bytes_per_sample` times twice the samples stored.
@@ -79,7 +101,7 @@ class FrameStore:
         width: int,
         act_dim: int,
         max_samples: int,
-        pos_dim: int = 6,
+        pos_dim: int = PROPRIO_DIM,
     ) -> None:
         self.cameras = tuple(cameras)
         self.shape = (height, width, 3)
@@ -89,7 +111,7 @@ class FrameStore:
         self.size = 0
         self._capacity = 0
         self.frames: dict[str, np.ndarray] = {}
-        self.agent_pos = np.zeros((0, pos_dim), np.float32)
+        self.proprio = np.zeros((0, pos_dim), np.float32)
         self.labels = np.zeros((0, act_dim), np.float32)
         self.executed = np.zeros((0, act_dim), np.float32)
         self.episode = np.zeros(0, np.int64)
@@ -98,8 +120,8 @@ class FrameStore:
 
     @staticmethod
     def bytes_per_sample(n_cameras: int, height: int, width: int, act_dim: int = 6) -> int:
-        """Bytes one stored step takes: its frames, ``agent_pos``, two actions, two ids."""
-        return n_cameras * height * width * 3 + 4 * (6 + 2 * act_dim) + 16
+        """Bytes one stored step takes: its frames, proprioception, two actions, two ids."""
+        return n_cameras * height * width * 3 + 4 * (PROPRIO_DIM + 2 * act_dim) + 16
 
     def __len__(self) -> int:
         return self.size
@@ -116,7 +138,7 @@ class FrameStore:
 
         for camera in self.cameras:
             self.frames[camera] = grown(self.frames.get(camera), self.shape, np.uint8)
-        self.agent_pos = grown(self.agent_pos, (self.pos_dim,), np.float32)
+        self.proprio = grown(self.proprio, (self.pos_dim,), np.float32)
         self.labels = grown(self.labels, (self.act_dim,), np.float32)
         self.executed = grown(self.executed, (self.act_dim,), np.float32)
         self.episode = grown(self.episode, (), np.int64)
@@ -126,12 +148,15 @@ class FrameStore:
     def add(
         self,
         obs: dict[str, Any],
+        previous: np.ndarray,
+        command: np.ndarray,
         label: np.ndarray,
         executed: np.ndarray,
         episode: int,
         round_: int,
     ) -> None:
-        """Store one step (its images are copied)."""
+        """Store one step (its images are copied); ``previous``: the last step's
+        ``agent_pos``, ``command``: the last action sent."""
         if self.size == self._capacity:
             if self.size >= self.max_samples:
                 raise ValueError(
@@ -142,7 +167,7 @@ class FrameStore:
         i = self.size
         for camera in self.cameras:
             self.frames[camera][i] = obs["pixels"][camera]
-        self.agent_pos[i] = obs["agent_pos"]
+        self.proprio[i] = proprioception(obs["agent_pos"], previous, command)
         self.labels[i] = label
         self.executed[i] = executed
         self.episode[i] = episode
@@ -151,7 +176,7 @@ class FrameStore:
 
     def nbytes(self) -> int:
         """Bytes the arrays hold now (their capacity, not just the samples stored)."""
-        arrays = [*self.frames.values(), self.agent_pos, self.labels, self.executed]
+        arrays = [*self.frames.values(), self.proprio, self.labels, self.executed]
         return sum(a.nbytes for a in arrays) + self.episode.nbytes + self.round.nbytes
 
 
@@ -163,11 +188,12 @@ def build_network(
     act_dim: int,
     channels: Sequence[int] = (16, 32, 32, 32),
     hidden: Sequence[int] = (256, 256),
-    pos_dim: int = 6,
+    pos_dim: int = PROPRIO_DIM,
 ) -> Any:
-    """The student: an encoder per camera (convolutions, spatial softmax), ``agent_pos``
-    beside their keypoints, an MLP to the action. Its ``forward(images, agent_pos)`` takes
-    a dict of float images (N, 3, H, W) in [0, 1] and normalised joint angles (N, 6)."""
+    """The student: an encoder per camera (convolutions, spatial softmax), the
+    proprioception beside their keypoints, an MLP to the action. Its ``forward(images,
+    proprio)`` takes a dict of float images (N, 3, H, W) in [0, 1] and the normalised
+    proprioception (N, 18)."""
     import torch
     from torch import nn
 
@@ -207,9 +233,9 @@ def build_network(
             layers.append(nn.Linear(width, act_dim))
             self.head = nn.Sequential(*layers)
 
-        def forward(self, images: dict[str, torch.Tensor], agent_pos: torch.Tensor) -> torch.Tensor:
+        def forward(self, images: dict[str, torch.Tensor], proprio: torch.Tensor) -> torch.Tensor:
             features = [self.encoders[camera](images[camera] - 0.5) for camera in self.cameras]
-            return self.head(torch.cat([*features, agent_pos], 1))
+            return self.head(torch.cat([*features, proprio], 1))
 
     return PixelNet()
 
@@ -224,23 +250,22 @@ def random_shift(images: Any, pad: int, generator: Any) -> Any:
         return images
     n, _, h, w = images.shape
     padded = functional.pad(images, (pad, pad, pad, pad), mode="replicate")
-    shift = torch.randint(0, 2 * pad + 1, (n, 2), generator=generator)
-    rows = (torch.arange(h)[None, :] + shift[:, :1]).view(n, 1, h, 1).expand(n, 1, h, w + 2 * pad)
-    picked = torch.gather(padded, 2, rows.expand(n, images.shape[1], h, w + 2 * pad))
-    cols = (
-        (torch.arange(w)[None, :] + shift[:, 1:]).view(n, 1, 1, w).expand(n, images.shape[1], h, w)
-    )
-    return torch.gather(picked, 3, cols)
+    c, device = images.shape[1], images.device
+    shift = torch.randint(0, 2 * pad + 1, (n, 2), generator=generator).to(device)
+    rows = (torch.arange(h, device=device)[None, :] + shift[:, :1]).view(n, 1, h, 1)
+    picked = torch.gather(padded, 2, rows.expand(n, c, h, w + 2 * pad))
+    cols = (torch.arange(w, device=device)[None, :] + shift[:, 1:]).view(n, 1, 1, w)
+    return torch.gather(picked, 3, cols.expand(n, c, h, w))
 
 
 def to_tensors(
     frames: Mapping[str, np.ndarray],
-    agent_pos: np.ndarray,
+    proprio: np.ndarray,
     mean: np.ndarray,
     std: np.ndarray,
     device: Any,
 ) -> tuple[dict[str, Any], Any]:
-    """uint8 (N, H, W, 3) frames and raw ``agent_pos`` as the network's inputs."""
+    """uint8 (N, H, W, 3) frames and raw proprioception as the network's inputs."""
     import torch
 
     images = {
@@ -250,18 +275,37 @@ def to_tensors(
         .div_(255.0)
         for camera, array in frames.items()
     }
-    pos = torch.as_tensor((np.asarray(agent_pos, np.float32) - mean) / std, device=device)
+    pos = torch.as_tensor((np.asarray(proprio, np.float32) - mean) / std, device=device)
     return images, pos
 
 
 # --------------------------------------------------------------------------- policy
 
 
+def command_map(env: Any) -> np.ndarray:
+    """(scale, offset), each (6,): the student's normalised absolute command that sends
+    the servos to joint angles ``q`` (rad) is ``q * scale + offset``, read off ``env``'s
+    control mode."""
+    control = env.unwrapped.control
+    here = np.asarray(env.unwrapped.commanded_targets, np.float64)
+    zero = np.asarray(control.action_for_targets(np.zeros(6), here), np.float64)
+    one = np.asarray(control.action_for_targets(np.ones(6), here), np.float64)
+    return np.stack([one - zero, zero]).astype(np.float32)
+
+
+def command_at_reset(command_of_pos: np.ndarray, agent_pos: np.ndarray) -> np.ndarray:
+    """The command that holds the joints at ``agent_pos`` (rad)."""
+    scale, offset = command_of_pos
+    return np.clip(np.asarray(agent_pos, np.float32) * scale + offset, -1.0, 1.0)
+
+
 class PixelPolicy:
     """A pixel policy folder (or a network being trained) acting on observations.
 
-    ``policy(obs, info)`` gives the action of one observation; :meth:`act` of a list of
-    them. Observations of other cameras or image sizes than it was trained on are refused.
+    ``policy(obs, info)`` gives the action of one observation of an episode (it keeps
+    the last ``agent_pos`` to see how the joints move; :meth:`reset` after each
+    ``env.reset``); :meth:`act` of a list of them with their last ``agent_pos``.
+    Observations of other cameras or image sizes than it was trained on are refused.
     """
 
     def __init__(
@@ -271,6 +315,7 @@ class PixelPolicy:
         image_shape: tuple[int, int],
         mean: np.ndarray,
         std: np.ndarray,
+        command_of_pos: np.ndarray,
         device: Any = "cpu",
     ) -> None:
         self.net = net
@@ -279,6 +324,9 @@ class PixelPolicy:
         self.mean = np.asarray(mean, np.float32)
         self.std = np.asarray(std, np.float32)
         self.device = device
+        self.command_of_pos = np.asarray(command_of_pos, np.float32)
+        self._previous: np.ndarray | None = None
+        self._command: np.ndarray | None = None
 
     @classmethod
     def load(cls, folder: str | os.PathLike[str], device: Any = "cpu") -> PixelPolicy:
@@ -298,6 +346,7 @@ class PixelPolicy:
             (layout["height"], layout["width"]),
             saved["mean"].numpy(),
             saved["std"].numpy(),
+            saved["command_of_pos"].numpy(),
             device,
         )
 
@@ -322,21 +371,50 @@ class PixelPolicy:
                 "observation_width of its settings.json, or train one for these cameras."
             )
 
-    def act(self, observations: Sequence[Any]) -> np.ndarray:
-        """The actions (float32, clipped to [-1, 1]) of a list of observations."""
+    def act(
+        self,
+        observations: Sequence[Any],
+        previous: Sequence[np.ndarray] | None = None,
+        commands: Sequence[np.ndarray] | None = None,
+    ) -> np.ndarray:
+        """The actions (float32, clipped to [-1, 1]) of a list of observations, given the
+        ``agent_pos`` of each one's last step and the last action sent to each (None:
+        right after a reset)."""
         import torch
 
         for obs in observations:
             self.check(obs)
         frames = {c: np.stack([obs["pixels"][c] for obs in observations]) for c in self.cameras}
         pos = np.stack([obs["agent_pos"] for obs in observations])
-        images, pos_t = to_tensors(frames, pos, self.mean, self.std, self.device)
+        if previous is None:
+            previous = pos
+        if commands is None:
+            commands = self.command_at_reset(pos)
+        commands = np.asarray(commands, np.float32)
+        proprio = proprioception(pos, np.stack(previous), commands)
+        images, pos_t = to_tensors(frames, proprio, self.mean, self.std, self.device)
         with torch.no_grad():
-            action = self.net(images, pos_t).cpu().numpy()
-        return np.clip(action, -1.0, 1.0).astype(np.float32)
+            change = self.net(images, pos_t).cpu().numpy()
+        return np.clip(commands + RESIDUAL_SCALE * change, -1.0, 1.0).astype(np.float32)
+
+    def command_at_reset(self, agent_pos: np.ndarray) -> np.ndarray:
+        """The command that holds the joints at ``agent_pos``: the last command an episode
+        starts from."""
+        return command_at_reset(self.command_of_pos, agent_pos)
+
+    def reset(self) -> None:
+        """Forget the last step: the next call starts an episode."""
+        self._previous = None
+        self._command = None
 
     def __call__(self, obs: Any, info: dict[str, Any] | None = None) -> np.ndarray:
-        return self.act([obs])[0]
+        if self._previous is None:
+            action = self.act([obs])[0]
+        else:
+            action = self.act([obs], [self._previous], [self._command])[0]
+        self._previous = np.array(obs["agent_pos"], np.float32)
+        self._command = action
+        return action
 
 
 # --------------------------------------------------------------------------- settings
@@ -472,6 +550,7 @@ def train_pixels(
 
     envs = [make_env(spec.name, env_kwargs) for _ in range(settings["n_envs"])]
     act_dim = envs[0].action_space.shape[0]
+    command_of_pos = command_map(envs[0])
     run = _Run(FrameStore(cameras, height, width, act_dim, min(worst, budget)))
     rng = np.random.default_rng([seed, 25])
     generator = torch.Generator().manual_seed(seed)
@@ -481,7 +560,9 @@ def train_pixels(
     observation_names = list(envs[0].unwrapped.observation_names)
 
     def policy() -> PixelPolicy:
-        return PixelPolicy(run.net, cameras, (height, width), run.mean, run.std, device)
+        return PixelPolicy(
+            run.net, cameras, (height, width), run.mean, run.std, command_of_pos, device
+        )
 
     def write_settings() -> None:
         (out_path / SETTINGS_FILE).write_text(
@@ -522,6 +603,7 @@ def train_pixels(
                 "weights": weights,
                 "mean": torch.as_tensor(run.mean),
                 "std": torch.as_tensor(run.std),
+                "command_of_pos": torch.as_tensor(command_of_pos),
             },
             out_path / PIXEL_MODEL_FILE,
         )
@@ -537,7 +619,8 @@ def train_pixels(
                 slots[i] = None
                 return
             obs, info = envs[i].reset(seed=pending.pop(0))
-            slots[i] = [obs, info, run.episodes]
+            pos = np.asarray(obs["agent_pos"], np.float32)
+            slots[i] = [obs, info, run.episodes, pos, command_at_reset(command_of_pos, pos)]
             run.episodes += 1
 
         for i in range(len(envs)):
@@ -558,17 +641,30 @@ def train_pixels(
                 use = rng.random(len(active)) >= beta
                 if use.any():
                     executed = executed.copy()
+                    chosen = [i for i, u in zip(active, use, strict=True) if u]
                     executed[use] = learner.act(
-                        [slots[i][0] for i, u in zip(active, use, strict=True) if u]
+                        [slots[i][0] for i in chosen],
+                        [slots[i][3] for i in chosen],
+                        [slots[i][4] for i in chosen],
                     )
             for j, i in enumerate(active):
-                run.store.add(slots[i][0], labels[j], executed[j], slots[i][2], round_)
+                run.store.add(
+                    slots[i][0],
+                    slots[i][3],
+                    slots[i][4],
+                    labels[j],
+                    executed[j],
+                    slots[i][2],
+                    round_,
+                )
                 obs, _, terminated, truncated, info = envs[i].step(executed[j])
                 run.env_steps += 1
                 if terminated or truncated:
                     successes += bool(info.get("is_success", False))
                     start(i)
                 else:
+                    slots[i][3] = np.asarray(slots[i][0]["agent_pos"], np.float32)
+                    slots[i][4] = executed[j]
                     slots[i][0], slots[i][1] = obs, info
         logger.info(
             "%s: round %d, %d steps stored (%.2f GiB held), beta %.2f, %d executed successes",
@@ -592,7 +688,7 @@ def train_pixels(
                 index = np.sort(order[begin : begin + params["batch_size"]])
                 images, pos = to_tensors(
                     {c: store.frames[c][index] for c in cameras},
-                    store.agent_pos[index],
+                    store.proprio[index],
                     run.mean,
                     run.std,
                     device,
@@ -600,7 +696,8 @@ def train_pixels(
                 images = {
                     c: random_shift(x, params["shift_px"], generator) for c, x in images.items()
                 }
-                target = torch.as_tensor(store.labels[index], device=device)
+                change = (store.labels[index] - store.proprio[index, -act_dim:]) / RESIDUAL_SCALE
+                target = torch.as_tensor(change, device=device)
                 loss = torch.nn.functional.mse_loss(run.net(images, pos), target)
                 run.optimizer.zero_grad()
                 loss.backward()
@@ -650,9 +747,10 @@ def train_pixels(
         gather(0, params["demos"], 1.0)
         if stop() or not len(run.store):
             return run.env_steps, None
-        pos = run.store.agent_pos[: len(run.store)]
-        run.mean = pos.mean(axis=0).astype(np.float32)
-        run.std = np.maximum(pos.std(axis=0), AGENT_POS_STD_FLOOR).astype(np.float32)
+        proprio = run.store.proprio[: len(run.store)]
+        floor = np.repeat(np.asarray(PROPRIO_STD_FLOOR, np.float32), PROPRIO_DIM // 3)
+        run.mean = proprio.mean(axis=0).astype(np.float32)
+        run.std = np.maximum(proprio.std(axis=0), floor).astype(np.float32)
         run.net = build_network(cameras, act_dim, params["channels"], params["hidden"]).to(device)
         run.optimizer = torch.optim.Adam(run.net.parameters(), lr=params["learning_rate"])
         loss = fit(params["epochs"])

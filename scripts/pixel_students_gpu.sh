@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# Pixel students on one GPU machine (16 cores, one NVIDIA GPU): the CPU recipe of
+# docs/learning.md with --device cuda, several runs side by side, each stopped with Ctrl-C
+# (SIGINT: checkpoint and curve kept) after LIMIT_S seconds.
+#
+#   OUT=/tmp/out bash scripts/pixel_students_gpu.sh
+#
+# Writes $OUT/pixel_runs.tgz (each run's settings.json, curve.csv, model.pt, log) and
+# $OUT/pixel_gpu_summary.json (best success, wall time and rounds of each run).
+set -u
+OUT=${OUT:-/tmp/pixel_out}
+RUNS=${RUNS:-/tmp/pixel_runs}
+LIMIT_S=${LIMIT_S:-420}
+DEVICE=${DEVICE:-cuda}
+PY=${PYTHON:-python3}
+mkdir -p "$OUT" "$RUNS"
+export MUJOCO_GL=egl PYTHONUNBUFFERED=1
+nvidia-smi -L 2>/dev/null || true
+$PY -c "import os, torch; print('cpus', os.cpu_count(), 'torch', torch.__version__, 'cuda', torch.cuda.is_available())"
+
+run() {  # run NAME ALGO TASK SEED
+  timeout -s INT "$LIMIT_S" $PY -m gym_soarm.train --algo "$2" --task "$3" --seed "$4" \
+    --obs-type pixels_agent_pos --camera-config front_wrist --observation-height 96 \
+    --observation-width 128 --device "$DEVICE" --out "$RUNS/$1" >"$RUNS/$1.log" 2>&1
+  echo "$1 exit $?"
+}
+
+for seed in 0 1 2; do
+  run "lift_bc_s$seed" bc LiftCube-v0 "$seed" &
+  run "lift_dagger_s$seed" dagger LiftCube-v0 "$seed" &
+done
+run reach_dagger_s0 dagger ReachTarget-v0 0 &
+run push_dagger_s0 dagger PushCube-v0 0 &
+run pick_and_place_dagger_s0 dagger PickAndPlaceCube-v0 0 &
+wait
+
+$PY - "$RUNS" >"$OUT/pixel_gpu_summary.json" <<'PY'
+import csv, json, pathlib, sys
+root = pathlib.Path(sys.argv[1])
+summary = {}
+for folder in sorted(p for p in root.iterdir() if p.is_dir()):
+    rows = list(csv.DictReader(open(folder / "curve.csv"))) if (folder / "curve.csv").is_file() else []
+    summary[folder.name] = {
+        "rounds": [
+            {k: float(r[k]) for k in ("round", "samples", "wall_s", "success_rate")} for r in rows
+        ],
+        "best_success": max((float(r["success_rate"]) for r in rows), default=None),
+    }
+print(json.dumps(summary, indent=1))
+PY
+cat "$OUT/pixel_gpu_summary.json"
+tar czf "$OUT/pixel_runs.tgz" -C "$RUNS" .
