@@ -78,6 +78,7 @@ from gym_soarm.rl.pixels import (
     PIXEL_OBS_TYPES,
     check_pixel_settings,
     is_pixel_env,
+    store_bound,
     train_pixels,
 )
 from gym_soarm.settings import merge_keywords
@@ -508,6 +509,7 @@ def train_imitation(
     sb3 = require_sb3()
     pyplot()
     if pixels:
+        store_bound(algo, spec, settings)  # a ValueError before the folder is made
         return _train_pixel_student(algo, spec, out_path, seed, settings, device)
     import torch
     from stable_baselines3.common.vec_env import DummyVecEnv

@@ -492,6 +492,31 @@ def worst_case_samples(algo: str, params: Mapping[str, Any], max_episode_steps: 
     return episodes * max_episode_steps
 
 
+def store_bound(
+    algo: str, spec: Any, settings: Mapping[str, Any]
+) -> tuple[tuple[str, ...], int, int, int, int, int]:
+    """The cameras, image height and width, bytes a stored step, the steps a run could
+    store at most and the steps ``max_memory_gb`` holds; a ValueError when the first is
+    over the second (before anything runs)."""
+    from gym_soarm.settings import EnvSettings
+
+    params = settings["algo"]
+    resolved = EnvSettings.from_kwargs(task=spec.name, **settings["env"])
+    cameras = tuple(resolved.camera_config)
+    height, width = resolved.observation_height, resolved.observation_width
+    per_sample = FrameStore.bytes_per_sample(len(cameras), height, width)
+    worst = worst_case_samples(algo, params, spec.max_episode_steps)
+    budget = int(params["max_memory_gb"] * 2**30 / per_sample)
+    if worst > budget:
+        raise ValueError(
+            f"this run could store {worst} steps of {per_sample} bytes "
+            f"({worst * per_sample / 2**30:.1f} GiB: {len(cameras)} cameras at {height}x{width}), "
+            f"over max_memory_gb={params['max_memory_gb']}; collect fewer episodes, use smaller "
+            "images or raise max_memory_gb (--hyperparams max_memory_gb=N)."
+        )
+    return cameras, height, width, per_sample, worst, budget
+
+
 def train_pixels(
     algo: str,
     spec: Any,
@@ -519,24 +544,11 @@ def train_pixels(
         SEED_STRIDE,
         training_seeds,
     )
-    from gym_soarm.settings import EnvSettings
     from gym_soarm.tasks.suites import EVAL_SEED
 
     params = settings["algo"]
     env_kwargs = dict(settings["env"])
-    resolved = EnvSettings.from_kwargs(task=spec.name, **env_kwargs)
-    cameras = tuple(resolved.camera_config)
-    height, width = resolved.observation_height, resolved.observation_width
-    per_sample = FrameStore.bytes_per_sample(len(cameras), height, width)
-    worst = worst_case_samples(algo, params, spec.max_episode_steps)
-    budget = int(params["max_memory_gb"] * 2**30 / per_sample)
-    if worst > budget:
-        raise ValueError(
-            f"this run could store {worst} steps of {per_sample} bytes "
-            f"({worst * per_sample / 2**30:.1f} GiB: {len(cameras)} cameras at {height}x{width}), "
-            f"over max_memory_gb={params['max_memory_gb']}; collect fewer episodes, use smaller "
-            "images or raise max_memory_gb (--hyperparams max_memory_gb=N)."
-        )
+    cameras, height, width, per_sample, worst, budget = store_bound(algo, spec, settings)
     logger.info(
         "pixel store: %d bytes a step, at most %d steps (%.2f GiB)",
         per_sample,
@@ -786,5 +798,6 @@ __all__ = [
     "build_network",
     "is_pixel_env",
     "random_shift",
+    "store_bound",
     "train_pixels",
 ]

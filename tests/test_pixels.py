@@ -1,0 +1,308 @@
+"""Policies that learn from the cameras (SPEC 25): the cameras frame the task, the pixel
+student trains through ``python -m gym_soarm.train --obs-type pixels_agent_pos`` with real
+rendering, its folder loads and acts on rendered observations, other cameras or sizes are
+refused, and bad input fails before anything trains (behaviour, never success rates)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+if os.environ.get("GYM_SOARM_REQUIRE_RL") != "1":
+    pytest.importorskip("torch", reason='needs the rl extra: pip install "gym-soarm[rl]"')
+    pytest.importorskip(
+        "stable_baselines3", reason='needs the rl extra: pip install "gym-soarm[rl]"'
+    )
+
+import torch
+
+import gym_soarm
+from gym_soarm.expert import make_expert
+from gym_soarm.rl.evaluation import TrainedPolicy, make_env, score
+from gym_soarm.rl.imitation import train_imitation
+from gym_soarm.rl.pixels import (
+    PIXEL_MODEL_FILE,
+    FrameStore,
+    PixelPolicy,
+    command_map,
+    proprioception,
+    random_shift,
+)
+from gym_soarm.tasks.scripted import ScriptedExpert
+from gym_soarm.tasks.state_expert import StateExpert
+
+PIXELS = ["--obs-type", "pixels_agent_pos", "--camera-config", "front_wrist"]
+SIZE = ["--observation-height", "48", "--observation-width", "64"]
+TINY = ["demos=2", "epochs=1", "batch_size=32", "channels=[4,4,4,4]", "hidden=[16]"]
+
+
+def _cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    return subprocess.run(
+        [sys.executable, "-m", *args], capture_output=True, text=True, timeout=timeout, env=env
+    )
+
+
+# --------------------------------------------------------------------------- the teacher
+
+
+def test_package_make_expert_gives_the_state_expert_unless_the_script_is_asked_for():
+    env = gym.make("gym_soarm/LiftCube-v0")
+    try:
+        assert isinstance(gym_soarm.make_expert(env), StateExpert)
+        assert isinstance(gym_soarm.make_expert(env, kind="scripted"), ScriptedExpert)
+        with pytest.raises(ValueError, match="kind"):
+            gym_soarm.make_expert(env, kind="timed")
+    finally:
+        env.close()
+
+
+def test_shove_is_random_absolute_targets_mid_episode_and_counted_only_in_reach():
+    from gym_soarm.expert.perturbed import evaluate_perturbed
+
+    results = evaluate_perturbed("LiftCube-v0", 3, ["shove"])
+    assert [r.perturbation for r in results] == ["shove"] * 3
+    assert all(isinstance(r.applied, bool) for r in results)
+    # Reach has no object: every shove that ends before the episode counts.
+    reach = evaluate_perturbed("ReachTarget-v0", 2, ["shove"])
+    assert len(reach) == 2
+
+
+# --------------------------------------------------------------------------- cameras
+
+
+def _front_pixels(task: str, seed: int, name: str) -> int:
+    env = gym.make(
+        task,
+        obs_type="pixels",
+        camera_config="front_wrist",
+        observation_height=96,
+        observation_width=128,
+        image_modalities=("rgb", "segmentation"),
+    )
+    try:
+        obs, _ = env.reset(seed=seed)
+        segment = env.unwrapped.segmentation_ids[name]
+        return int((obs["segmentation"]["front_camera"] == segment).sum())
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_front_camera_shows_the_cube_large_enough_to_learn_from(seed):
+    assert _front_pixels("gym_soarm/LiftCube-v0", seed, "cube") >= 64
+
+
+def test_front_camera_is_mostly_table_and_the_wrist_camera_looks_past_the_jaws():
+    env = gym.make(
+        "gym_soarm/LiftCube-v0",
+        obs_type="pixels",
+        camera_config="front_wrist",
+        observation_height=96,
+        observation_width=128,
+        image_modalities=("segmentation",),
+    )
+    try:
+        obs, _ = env.reset(seed=1)
+        ids = env.unwrapped.segmentation_ids
+        front = obs["segmentation"]["front_camera"]
+        assert (front == ids["table"]).mean() > 0.5
+        wrist = obs["segmentation"]["wrist_camera"]
+        # The gripper's own body fills no more than a third of the wrist view.
+        assert (wrist == ids["robot"]).mean() < 0.34
+    finally:
+        env.close()
+
+
+# --------------------------------------------------------------------------- pieces
+
+
+def test_random_shift_crops_the_edge_padded_image_at_integer_offsets():
+    images = torch.arange(2 * 3 * 6 * 8, dtype=torch.float32).view(2, 3, 6, 8)
+    shifted = random_shift(images, 2, torch.Generator().manual_seed(0))
+    padded = torch.nn.functional.pad(images, (2, 2, 2, 2), mode="replicate")
+    for n in range(2):
+        windows = [
+            (dy, dx)
+            for dy in range(5)
+            for dx in range(5)
+            if torch.equal(padded[n, :, dy : dy + 6, dx : dx + 8], shifted[n])
+        ]
+        assert windows, "each shifted image is one window of the padded image"
+    assert torch.equal(random_shift(images, 0, torch.Generator()), images)
+
+
+def test_frame_store_keeps_uint8_frames_and_refuses_past_its_bound():
+    store = FrameStore(("front_camera",), 4, 5, 6, max_samples=3)
+    obs = {"pixels": {"front_camera": np.full((4, 5, 3), 7, np.uint8)}, "agent_pos": np.ones(6)}
+    for k in range(3):
+        store.add(obs, np.zeros(6), np.zeros(6), np.full(6, k), np.zeros(6), 0, 0)
+    assert store.frames["front_camera"].dtype == np.uint8 and len(store) == 3
+    assert np.array_equal(store.labels[:3, 0], [0, 1, 2])
+    assert store.proprio.shape[1] == len(proprioception(np.ones(6), np.ones(6), np.ones(6)))
+    with pytest.raises(ValueError, match="frame store is full"):
+        store.add(obs, np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6), 0, 0)
+
+
+def test_command_map_gives_the_action_that_holds_the_joints_where_they_are():
+    env = gym.make("gym_soarm/LiftCube-v0", normalize_actions=True, control_mode="joint_pos")
+    try:
+        _obs, _ = env.reset(seed=0)
+        scale, offset = command_map(env)
+        q = env.unwrapped.physics.joint_angles()
+        held = q * scale + offset
+        for _ in range(10):
+            env.step(held.astype(np.float32))
+        assert np.allclose(env.unwrapped.physics.joint_angles()[:5], q[:5], atol=0.02)
+    finally:
+        env.close()
+
+
+# --------------------------------------------------------------------------- training
+
+
+@pytest.fixture(scope="module")
+def dagger_lift(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("pixels") / "dagger"
+    done = _cli(
+        "gym_soarm.train", "--algo", "dagger", "--task", "lift", "--seed", "1",
+        *PIXELS, *SIZE, "--eval-episodes", "1", "--out", str(out),
+        "--hyperparams", *TINY, "rounds=1", "episodes_per_round=1", "round_epochs=1",
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "done:" in done.stdout
+    return out
+
+
+def test_pixel_dagger_writes_a_folder_with_its_image_settings(dagger_lift):
+    for name in (PIXEL_MODEL_FILE, "settings.json", "curve.csv", "curve.png"):
+        assert (dagger_lift / name).is_file(), name
+    settings = json.loads((dagger_lift / "settings.json").read_text())
+    assert settings["policy"] == "pixels"
+    assert settings["cameras"] == ["front_camera", "wrist_camera"]
+    assert settings["image_size"] == [48, 64]
+    assert settings["env"]["obs_type"] == "pixels_agent_pos"
+    rows = (dagger_lift / "curve.csv").read_text().splitlines()
+    assert rows[0].startswith("round,") and len(rows) == 3  # header, rounds 0 and 1
+
+
+def test_pixel_policy_acts_on_rendered_observations_and_is_scored(dagger_lift):
+    policy = TrainedPolicy(dagger_lift)
+    env = make_env(policy.task, policy.settings["env"])
+    try:
+        obs, info = env.reset(seed=5)
+        policy.reset()
+        first = policy(obs, info)
+        assert first.shape == (6,) and first.dtype == np.float32
+        assert np.all(np.abs(first) <= 1.0)
+        # Deterministic: the same observation after a reset gives the same action.
+        policy.reset()
+        assert np.array_equal(policy(obs, info), first)
+    finally:
+        env.close()
+    result = score(policy.task, policy.settings["env"], policy, 1)
+    assert result["episodes"] == 1 and 0.0 <= result["success_rate"] <= 1.0
+    done = _cli("gym_soarm.evaluate", "--policy", str(dagger_lift), "--episodes", "1")
+    assert done.returncode == 0, done.stderr
+    assert "LiftCube-v0: success" in done.stdout
+
+
+def test_pixel_policy_refuses_other_cameras_or_sizes_naming_both(dagger_lift):
+    policy = PixelPolicy.load(dagger_lift)
+    other = {
+        "pixels": {"front_camera": np.zeros((96, 128, 3), np.uint8)},
+        "agent_pos": np.zeros(6, np.float32),
+    }
+    with pytest.raises(ValueError, match=r"front_camera', 'wrist_camera'\] at 48x64.*96x128"):
+        policy(other)
+    with pytest.raises(ValueError, match="pixels_agent_pos"):
+        policy(np.zeros(34, np.float32))
+
+
+def test_interrupted_before_training_keeps_no_model_and_says_so(tmp_path):
+    # A stop flag that is already set: nothing is collected, nothing saved, no crash.
+    from gym_soarm.rl.hyperparams import pixel_recipe
+    from gym_soarm.rl.pixels import check_pixel_settings, train_pixels
+    from gym_soarm.tasks import get_task
+
+    settings = check_pixel_settings("bc", pixel_recipe("bc", "LiftCube-v0"))
+    steps, rate = train_pixels("bc", get_task("lift"), tmp_path, 0, settings, stop=lambda: True)
+    assert steps == 0 and rate is None
+    assert not (tmp_path / PIXEL_MODEL_FILE).exists()
+
+
+# --------------------------------------------------------------------------- bad input
+
+
+@pytest.mark.parametrize(
+    ("env", "hyperparams", "message"),
+    [
+        ({"obs_type": "pixels"}, None, "pixels_agent_pos"),
+        ({"obs_type": "pixels_agent_pos", "control_mode": "joint_delta"}, None, "control_mode"),
+        ({"obs_type": "pixels_agent_pos", "camera_config": ["sky_camera"]}, None, "sky_camera"),
+        ({"obs_type": "pixels_agent_pos", "observation_height": 0}, None, "observation_height"),
+        ({"obs_type": "pixels_agent_pos"}, {"max_memory_gb": 0.001}, "max_memory_gb"),
+        ({"obs_type": "pixels_agent_pos"}, {"channels": [8, 8]}, "channels"),
+        ({"obs_type": "pixels_agent_pos"}, {"shift_px": -1}, "shift_px"),
+    ],
+)
+def test_bad_pixel_settings_are_refused_before_anything_is_written(
+    tmp_path, env, hyperparams, message
+):
+    out = tmp_path / "run"
+    with pytest.raises((ValueError, TypeError), match=message):
+        train_imitation("bc", "lift", out, env=env, hyperparams=hyperparams)
+    assert not out.exists()
+
+
+def test_a_task_without_a_state_expert_is_refused(tmp_path):
+    from gym_soarm.rl.imitation import check_pixel_student
+    from gym_soarm.tasks import get_task
+
+    scripted_only = dataclasses.replace(get_task("lift"), state_expert=None)
+    with pytest.raises(ValueError, match="state expert"):
+        check_pixel_student(scripted_only, {"obs_type": "pixels_agent_pos"})
+
+
+def test_cli_refuses_cameras_for_rl_and_a_gpu_for_state_policies(tmp_path):
+    done = _cli(
+        "gym_soarm.train", "--algo", "ppo", "--task", "lift", *PIXELS, "--out", str(tmp_path / "a")
+    )
+    assert done.returncode != 0 and "learns from the state vector" in done.stderr
+    done = _cli(
+        "gym_soarm.train", "--algo", "bc", "--task", "lift", "--device", "cuda",
+        "--out", str(tmp_path / "b"),
+    )  # fmt: skip
+    assert done.returncode != 0 and "state policies train on the CPU" in done.stderr
+    done = _cli(
+        "gym_soarm.train", "--algo", "bc", "--task", "lift", *PIXELS, "--device", "tpu",
+        "--out", str(tmp_path / "c"),
+    )  # fmt: skip
+    assert done.returncode != 0 and "device must be" in done.stderr
+    assert not any((tmp_path / name).exists() for name in "abc")
+
+
+def test_expert_labels_pixel_states_from_the_simulation():
+    env = gym.make(
+        "gym_soarm/LiftCube-v0",
+        obs_type="pixels_agent_pos",
+        observation_height=48,
+        observation_width=64,
+        normalize_actions=True,
+        control_mode="joint_pos",
+    )
+    try:
+        obs, info = env.reset(seed=0)
+        expert = make_expert(env)
+        action = expert(obs, info)
+        assert action.shape == (6,) and np.all(np.abs(action) <= 1.0)
+    finally:
+        env.close()
