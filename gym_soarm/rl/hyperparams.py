@@ -202,7 +202,7 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
             "eval_episodes": 20,
             "algo": {
                 "demos": 100,
-                "dart_std": 0.01,
+                "dart_std": 0.003,
                 "epochs": 20,
                 "batch_size": 64,
                 "learning_rate": 3e-4,
@@ -212,7 +212,7 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "max_memory_gb": 8.0,
             },
         },
-        REACH: {"algo": {"dart_std": 0.03, "demos": 60}},
+        REACH: {"algo": {"dart_std": 0.01, "demos": 60}},
     },
     "dagger": {
         "default": {
@@ -222,7 +222,7 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
             "eval_episodes": 20,
             "algo": {
                 "demos": 60,
-                "dart_std": 0.01,
+                "dart_std": 0.003,
                 "epochs": 20,
                 "batch_size": 64,
                 "learning_rate": 3e-4,
@@ -237,7 +237,7 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "beta_decay": 0.5,
             },
         },
-        REACH: {"algo": {"dart_std": 0.03}},
+        REACH: {"algo": {"dart_std": 0.01}},
     },
 }
 """The pixel students' recipes (:mod:`gym_soarm.rl.pixels`): the same keys as the state

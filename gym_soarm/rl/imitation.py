@@ -26,7 +26,9 @@ the clean expert action), then ``epochs`` of regression. **DAgger**: round 0 is 
 ``demos`` episodes; in each round r = 1 .. R, ``episodes_per_round`` episodes where each
 step executes the expert's action with probability ``beta0 * beta_decay ** r`` and the
 learner's otherwise; the expert labels every visited state, the data is aggregated and
-the policy retrained (warm start, ``round_epochs``), evaluated and saved.
+the policy retrained (warm start, ``round_epochs``) and evaluated; the folder keeps the
+policy of the round that scored best (the latest among equals), with the data and the
+curve of every round.
 
 The reset seeds of the training episodes are ``100_000 * (seed + 1) + 1_000 * round + k``:
 never the protocol's (``1000 + k``) nor another training seed's.
@@ -525,6 +527,7 @@ def train_imitation(
         "model": None,
         "optimizer": None,
         "rate": None,
+        "best": -1.0,
     }
     envs = [make_env(spec.name, env_kwargs) for _ in range(settings["n_envs"])]
     try:
@@ -649,7 +652,12 @@ def train_imitation(
                     "episodes": settings["eval_episodes"],
                 }
             )
-            save()
+            if result["success_rate"] >= state["best"]:  # DAgger keeps its best round
+                state["best"] = result["success_rate"]
+                save()
+            else:
+                state["data"].save(out_path / DEMOS_FILE)
+                write_settings()
             write_curve()
             logger.info(
                 "%s: round %d, %d samples, loss %.4f, %.0f s, success %.0f %%",
