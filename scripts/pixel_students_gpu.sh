@@ -3,7 +3,8 @@
 # docs/learning.md with --device cuda, several runs side by side, each stopped with Ctrl-C
 # (SIGINT: checkpoint and curve kept) after LIMIT_S seconds.
 #
-#   OUT=/tmp/out bash scripts/pixel_students_gpu.sh
+#   OUT=/tmp/out bash scripts/pixel_students_gpu.sh            # the recipes, several seeds
+#   OUT=/tmp/out VARIANTS=1 bash scripts/pixel_students_gpu.sh  # recipe variants on Lift
 #
 # Writes $OUT/pixel_runs.tgz (each run's settings.json, curve.csv, model.pt, log) and
 # $OUT/pixel_gpu_summary.json (best success, wall time and rounds of each run).
@@ -18,20 +19,40 @@ export MUJOCO_GL=egl PYTHONUNBUFFERED=1
 nvidia-smi -L 2>/dev/null || true
 $PY -c "import os, torch; print('cpus', os.cpu_count(), 'torch', torch.__version__, 'cuda', torch.cuda.is_available())"
 
-run() {  # run NAME ALGO TASK SEED
-  timeout -s INT "$LIMIT_S" $PY -m gym_soarm.train --algo "$2" --task "$3" --seed "$4" \
-    --obs-type pixels_agent_pos --camera-config front_wrist --observation-height 96 \
-    --observation-width 128 --device "$DEVICE" --out "$RUNS/$1" >"$RUNS/$1.log" 2>&1
-  echo "$1 exit $?"
+run() {  # run NAME ALGO TASK SEED [KEY=VALUE ...]: the recipe with those values
+  local name=$1 algo=$2 task=$3 seed=$4
+  shift 4
+  local extra=()
+  if [ $# -gt 0 ]; then extra=(--hyperparams "$@"); fi
+  timeout -s INT "$LIMIT_S" $PY -m gym_soarm.train --algo "$algo" --task "$task" \
+    --seed "$seed" --obs-type pixels_agent_pos --camera-config front_wrist \
+    --observation-height 96 --observation-width 128 --device "$DEVICE" \
+    --out "$RUNS/$name" "${extra[@]}" >"$RUNS/$name.log" 2>&1
+  echo "$name exit $?"
 }
 
-for seed in 0 1 2; do
-  run "lift_bc_s$seed" bc LiftCube-v0 "$seed" &
-  run "lift_dagger_s$seed" dagger LiftCube-v0 "$seed" &
-done
-run reach_dagger_s0 dagger ReachTarget-v0 0 &
-run push_dagger_s0 dagger PushCube-v0 0 &
-run pick_and_place_dagger_s0 dagger PickAndPlaceCube-v0 0 &
+if [ "${VARIANTS:-0}" = 1 ]; then
+  # Which recipe: the default against a faster learning rate, longer training and
+  # images pooled to half size before the encoder (Lift, BC and DAgger).
+  run lift_bc_default bc LiftCube-v0 0 &
+  for seed in 0 1 2; do
+    run "lift_bc_fast_s$seed" bc LiftCube-v0 "$seed" learning_rate=1e-3 epochs=60 &
+  done
+  run lift_bc_fast_pooled bc LiftCube-v0 0 learning_rate=1e-3 epochs=60 downsample=2 &
+  run lift_bc_long bc LiftCube-v0 0 learning_rate=1e-3 epochs=100 batch_size=128 &
+  run lift_dagger_fast dagger LiftCube-v0 0 learning_rate=1e-3 epochs=40 round_epochs=20 &
+  run reach_bc_fast bc ReachTarget-v0 0 learning_rate=1e-3 epochs=60 &
+  run push_bc_fast bc PushCube-v0 0 learning_rate=1e-3 epochs=60 &
+  wait
+else
+  for seed in 0 1 2; do
+    run "lift_bc_s$seed" bc LiftCube-v0 "$seed" &
+    run "lift_dagger_s$seed" dagger LiftCube-v0 "$seed" &
+  done
+  run reach_dagger_s0 dagger ReachTarget-v0 0 &
+  run push_dagger_s0 dagger PushCube-v0 0 &
+  run pick_and_place_dagger_s0 dagger PickAndPlaceCube-v0 0 &
+fi
 wait
 
 $PY - "$RUNS" >"$OUT/pixel_gpu_summary.json" <<'PY'

@@ -207,6 +207,7 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "batch_size": 64,
                 "learning_rate": 3e-4,
                 "shift_px": 4,
+                "downsample": 1,
                 "channels": [16, 32, 32, 32],
                 "hidden": [256, 256],
                 "max_memory_gb": 8.0,
@@ -227,6 +228,7 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "batch_size": 64,
                 "learning_rate": 3e-4,
                 "shift_px": 4,
+                "downsample": 1,
                 "channels": [16, 32, 32, 32],
                 "hidden": [256, 256],
                 "max_memory_gb": 8.0,
@@ -242,8 +244,10 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
 }
 """The pixel students' recipes (:mod:`gym_soarm.rl.pixels`): the same keys as the state
 imitation recipes, the network given by ``channels`` (the four convolutions of each
-camera's encoder) and ``hidden`` (the MLP), ``shift_px`` (random-shift augmentation) and
-``max_memory_gb`` (the bound on the stored frames)."""
+camera's encoder) and ``hidden`` (the MLP), ``downsample`` (an average pooling of the
+images by this factor before the encoder: cheaper convolutions), ``shift_px`` (random-shift
+augmentation, in pixels of the stored image) and ``max_memory_gb`` (the bound on the
+stored frames)."""
 
 
 def pixel_recipe(algo: str, task: str) -> dict[str, Any]:

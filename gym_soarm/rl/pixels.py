@@ -189,6 +189,7 @@ def build_network(
     channels: Sequence[int] = (16, 32, 32, 32),
     hidden: Sequence[int] = (256, 256),
     pos_dim: int = PROPRIO_DIM,
+    downsample: int = 1,
 ) -> Any:
     """The student: an encoder per camera (convolutions, spatial softmax), the
     proprioception beside their keypoints, an MLP to the action. Its ``forward(images,
@@ -209,7 +210,9 @@ def build_network(
 
     def encoder() -> nn.Module:
         c1, c2, c3, c4 = channels
+        pool = [nn.AvgPool2d(downsample)] if downsample > 1 else []
         return nn.Sequential(
+            *pool,
             nn.Conv2d(3, c1, 5, stride=2, padding=2),
             nn.ReLU(),
             nn.Conv2d(c1, c2, 3, stride=2, padding=1),
@@ -336,7 +339,11 @@ class PixelPolicy:
         saved = torch.load(Path(folder) / PIXEL_MODEL_FILE, map_location=device, weights_only=True)
         layout = saved["layout"]
         net = build_network(
-            layout["cameras"], layout["act_dim"], layout["channels"], layout["hidden"]
+            layout["cameras"],
+            layout["act_dim"],
+            layout["channels"],
+            layout["hidden"],
+            downsample=layout.get("downsample", 1),
         )
         net.load_state_dict(saved["weights"])
         net.to(device).eval()
@@ -431,6 +438,7 @@ def check_pixel_settings(algo: str, settings: dict[str, Any]) -> dict[str, Any]:
     params["epochs"] = check_int("epochs", params["epochs"], 1)
     params["batch_size"] = check_int("batch_size", params["batch_size"], 1)
     params["shift_px"] = check_int("shift_px", params["shift_px"], 0)
+    params["downsample"] = check_int("downsample", params["downsample"], 1, 8)
     for key in ("learning_rate", "max_memory_gb"):
         params[key] = check_number(key, params[key], 0.0)
         if params[key] == 0:
@@ -607,6 +615,7 @@ def train_pixels(
             "act_dim": act_dim,
             "channels": list(params["channels"]),
             "hidden": list(params["hidden"]),
+            "downsample": params["downsample"],
         }
         weights = {k: v.detach().cpu() for k, v in run.net.state_dict().items()}
         torch.save(
@@ -689,28 +698,33 @@ def train_pixels(
         )
 
     def fit(epochs: int) -> float:
+        # The data as tensors on the training device once per fit (uint8 frames: on a GPU
+        # about 74 kB a step); each batch is indexed, shifted and scaled there.
         store = run.store
         n = len(store)
+        frames = {c: torch.from_numpy(store.frames[c][:n]).to(device) for c in cameras}
+        proprio = (store.proprio[:n] - run.mean) / run.std
+        change = (store.labels[:n] - store.proprio[:n, -act_dim:]) / RESIDUAL_SCALE
+        proprio_t = torch.as_tensor(proprio, device=device)
+        change_t = torch.as_tensor(change, device=device)
         run.net.train()
         loss_value = float("nan")
         for _ in range(epochs):
-            order = torch.randperm(n, generator=generator).numpy()
+            order = torch.randperm(n, generator=generator).to(device)
             total = 0.0
             for begin in range(0, n, params["batch_size"]):
-                index = np.sort(order[begin : begin + params["batch_size"]])
-                images, pos = to_tensors(
-                    {c: store.frames[c][index] for c in cameras},
-                    store.proprio[index],
-                    run.mean,
-                    run.std,
-                    device,
-                )
+                index = order[begin : begin + params["batch_size"]]
                 images = {
-                    c: random_shift(x, params["shift_px"], generator) for c, x in images.items()
+                    c: random_shift(
+                        frames[c][index].permute(0, 3, 1, 2).float().div_(255.0),
+                        params["shift_px"],
+                        generator,
+                    )
+                    for c in cameras
                 }
-                change = (store.labels[index] - store.proprio[index, -act_dim:]) / RESIDUAL_SCALE
-                target = torch.as_tensor(change, device=device)
-                loss = torch.nn.functional.mse_loss(run.net(images, pos), target)
+                loss = torch.nn.functional.mse_loss(
+                    run.net(images, proprio_t[index]), change_t[index]
+                )
                 run.optimizer.zero_grad()
                 loss.backward()
                 run.optimizer.step()
@@ -763,7 +777,9 @@ def train_pixels(
         floor = np.repeat(np.asarray(PROPRIO_STD_FLOOR, np.float32), PROPRIO_DIM // 3)
         run.mean = proprio.mean(axis=0).astype(np.float32)
         run.std = np.maximum(proprio.std(axis=0), floor).astype(np.float32)
-        run.net = build_network(cameras, act_dim, params["channels"], params["hidden"]).to(device)
+        run.net = build_network(
+            cameras, act_dim, params["channels"], params["hidden"], downsample=params["downsample"]
+        ).to(device)
         run.optimizer = torch.optim.Adam(run.net.parameters(), lr=params["learning_rate"])
         loss = fit(params["epochs"])
         if not stop():
