@@ -230,7 +230,8 @@ def test_pixel_policy_refuses_other_cameras_or_sizes_naming_both(dagger_lift):
 def test_interrupted_before_training_keeps_no_model_and_says_so(tmp_path):
     # A stop flag that is already set: nothing is collected, nothing saved, no crash.
     from gym_soarm.rl.hyperparams import pixel_recipe
-    from gym_soarm.rl.pixels import check_pixel_settings, train_pixels
+    from gym_soarm.rl.pixel_training import train_pixels
+    from gym_soarm.rl.pixels import check_pixel_settings
     from gym_soarm.tasks import get_task
 
     settings = check_pixel_settings("bc", pixel_recipe("bc", "LiftCube-v0"))

@@ -90,9 +90,10 @@ def test_asking_the_expert_changes_nothing():
 @pytest.mark.parametrize("task", GRASP_TASKS)
 def test_the_expert_finishes_from_perturbed_states(task):
     results = evaluate_perturbed(task, episodes=1)
-    assert {r.perturbation for r in results} == {"random", "push", "drop", "jaws"}
-    assert all(r.applied for r in results)
-    assert all(r.success for r in results), [r for r in results if not r.success]
+    assert {r.perturbation for r in results} == {"random", "push", "drop", "jaws", "shove"}
+    assert all(r.applied for r in results if r.perturbation != "shove")
+    counted = [r for r in results if r.applied]
+    assert all(r.success for r in counted), [r for r in counted if not r.success]
 
 
 def test_servo_targets_move_within_the_speed_limits():
@@ -141,7 +142,8 @@ def test_the_expert_succeeds_in_every_control_mode_and_unit(kwargs):
 def test_the_perturbed_report_names_each_perturbation(capsys):
     expert_cli.main(["--perturbed", "1", "--task", "ReachTarget-v0"])
     out = capsys.readouterr().out
-    assert out.startswith("ReachTarget-v0: 2/2 = 100.0 % success from perturbed states")
-    assert "random 1/1" in out and "jaws 1/1" in out and "push" not in out
+    assert out.startswith("ReachTarget-v0: 3/3 = 100.0 % success from perturbed states")
+    assert "random 1/1" in out and "jaws 1/1" in out and "shove 1/1" in out
+    assert "push" not in out
     with pytest.raises(SystemExit):
         expert_cli.main(["--perturbed", "0"])

@@ -53,8 +53,6 @@ import json
 import logging
 import os
 import pickle
-import signal
-import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -75,13 +73,23 @@ from gym_soarm.rl.evaluation import (
     score,
 )
 from gym_soarm.rl.hyperparams import IMITATION, pixel_recipe, recipe
+from gym_soarm.rl.pixel_training import train_pixels
 from gym_soarm.rl.pixels import (
     PIXEL_MODEL_FILE,
     PIXEL_OBS_TYPES,
     check_pixel_settings,
     is_pixel_env,
     store_bound,
-    train_pixels,
+)
+from gym_soarm.rl.runs import (
+    CURVE_CSV,
+    CURVE_FIELDS,
+    CURVE_PNG,
+    MAX_ROUNDS,
+    ROUND_STRIDE,
+    SEED_STRIDE,
+    StopOnInterrupt,
+    training_seeds,
 )
 from gym_soarm.settings import merge_keywords
 from gym_soarm.tasks import get_task
@@ -91,31 +99,9 @@ from gym_soarm.validation import ArgumentTypeError, check_int, check_number
 logger = logging.getLogger(__name__)
 
 DEMOS_FILE = "demos.npz"
-CURVE_CSV = "curve.csv"
-CURVE_PNG = "curve.png"
-CURVE_FIELDS = (
-    "round",
-    "env_steps",
-    "samples",
-    "wall_s",
-    "success_rate",
-    "mean_return",
-    "episodes",
-)
-SEED_STRIDE = 100_000
-"""Reset seeds of training seed ``s`` start at ``SEED_STRIDE * (s + 1)``."""
-ROUND_STRIDE = 1_000
-"""Reset seeds of round ``r`` start ``ROUND_STRIDE * r`` further on."""
-MAX_ROUNDS = SEED_STRIDE // ROUND_STRIDE - 1
 OBS_VAR_FLOOR = 1e-4
 """The smallest variance of an observation value in the normalisation (a value the
 demonstrations never change is not blown up)."""
-
-
-def training_seeds(seed: int, round_: int, episodes: int) -> list[int]:
-    """The reset seeds of round ``round_``'s ``episodes`` training episodes."""
-    base = SEED_STRIDE * (seed + 1) + ROUND_STRIDE * round_
-    return [base + k for k in range(episodes)]
 
 
 # --------------------------------------------------------------------------- data
@@ -410,33 +396,6 @@ def check_settings(algo: str, settings: dict[str, Any]) -> dict[str, Any]:
                 raise ValueError(f"{key} must be a number from 0 to 1; got {value!r}.")
             params[key] = value
     return settings
-
-
-# --------------------------------------------------------------------------- Ctrl-C
-
-
-class StopOnInterrupt:
-    """Ctrl-C (SIGINT) sets a flag that the trainer polls; the run then stops cleanly
-    and keeps its checkpoint and curve."""
-
-    def __init__(self) -> None:
-        self.interrupted = False
-        self._previous: Any = None
-
-    def __enter__(self) -> StopOnInterrupt:
-        if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._interrupt)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-
-    def _interrupt(self, signum: int, frame: Any) -> None:
-        self.interrupted = True
-
-    def __call__(self) -> bool:
-        return self.interrupted
 
 
 # --------------------------------------------------------------------------- trainer
