@@ -49,7 +49,6 @@ from __future__ import annotations
 import copy
 import csv
 import dataclasses
-import json
 import logging
 import os
 import pickle
@@ -60,7 +59,6 @@ from typing import Any
 
 import numpy as np
 
-from gym_soarm import __version__
 from gym_soarm.expert import make_expert
 from gym_soarm.rl.curves import TrainResult, pyplot, write_curve_png
 from gym_soarm.rl.evaluation import (
@@ -85,16 +83,15 @@ from gym_soarm.rl.runs import (
     CURVE_CSV,
     CURVE_FIELDS,
     CURVE_PNG,
-    MAX_ROUNDS,
-    ROUND_STRIDE,
-    SEED_STRIDE,
     StopOnInterrupt,
+    check_run_numbers,
     training_seeds,
+    write_run_settings,
 )
 from gym_soarm.settings import merge_keywords
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
-from gym_soarm.validation import ArgumentTypeError, check_int, check_number
+from gym_soarm.validation import ArgumentTypeError, check_int
 
 logger = logging.getLogger(__name__)
 
@@ -372,29 +369,8 @@ def _check_net_arch(policy_kwargs: Any) -> dict[str, Any]:
 
 def check_settings(algo: str, settings: dict[str, Any]) -> dict[str, Any]:
     """Check (and normalise) the numbers of a bc/dagger recipe; ValueError naming the key."""
-    params = settings["algo"]
-    settings["n_envs"] = check_int("n_envs", settings["n_envs"], 1)
-    settings["torch_threads"] = check_int("torch_threads", settings["torch_threads"], 1)
-    settings["eval_episodes"] = check_int("eval_episodes", settings["eval_episodes"], 1)
-    params["demos"] = check_int("demos", params["demos"], 1, ROUND_STRIDE - 1)
-    params["dart_std"] = check_number("dart_std", params["dart_std"], 0.0)
-    params["epochs"] = check_int("epochs", params["epochs"], 1)
-    params["batch_size"] = check_int("batch_size", params["batch_size"], 1)
-    params["learning_rate"] = check_number("learning_rate", params["learning_rate"], 0.0)
-    if params["learning_rate"] == 0:
-        raise ValueError("learning_rate must be a finite number > 0; got 0.")
-    params["policy_kwargs"] = _check_net_arch(params["policy_kwargs"])
-    if algo == "dagger":
-        params["rounds"] = check_int("rounds", params["rounds"], 1, MAX_ROUNDS)
-        params["episodes_per_round"] = check_int(
-            "episodes_per_round", params["episodes_per_round"], 1, ROUND_STRIDE - 1
-        )
-        params["round_epochs"] = check_int("round_epochs", params["round_epochs"], 1)
-        for key in ("beta0", "beta_decay"):
-            value = check_number(key, params[key], 0.0)
-            if value > 1:
-                raise ValueError(f"{key} must be a number from 0 to 1; got {value!r}.")
-            params[key] = value
+    check_run_numbers(algo, settings)
+    settings["algo"]["policy_kwargs"] = _check_net_arch(settings["algo"]["policy_kwargs"])
     return settings
 
 
@@ -508,23 +484,18 @@ def train_imitation(
         state["data"] = Dataset.empty(len(observation_names), envs[0].action_space.shape[0])
 
         def write_settings() -> None:
-            (out_path / SETTINGS_FILE).write_text(
-                json.dumps(
-                    {
-                        "format": POLICY_FORMAT,
-                        "algo": algo,
-                        "task": spec.name,
-                        "seed": seed,
-                        "steps": state["env_steps"],
-                        "env": env_kwargs,
-                        "observation_names": observation_names,
-                        "recipe": settings,
-                        "training_seeds": f"{SEED_STRIDE} * (seed + 1) + {ROUND_STRIDE} * round + k",
-                        "gym_soarm_version": __version__,
-                    },
-                    indent=2,
-                )
-                + "\n"
+            write_run_settings(
+                out_path / SETTINGS_FILE,
+                {
+                    "format": POLICY_FORMAT,
+                    "algo": algo,
+                    "task": spec.name,
+                    "seed": seed,
+                    "steps": state["env_steps"],
+                    "env": env_kwargs,
+                    "observation_names": observation_names,
+                    "recipe": settings,
+                },
             )
 
         write_settings()

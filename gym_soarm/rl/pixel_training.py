@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import json
 import logging
 import time
 from collections.abc import Callable
@@ -15,7 +14,6 @@ from typing import Any
 
 import numpy as np
 
-from gym_soarm import __version__
 from gym_soarm.expert import make_expert
 from gym_soarm.rl.curves import write_curve_png
 from gym_soarm.rl.evaluation import POLICY_FORMAT, SETTINGS_FILE, make_env, score
@@ -37,9 +35,8 @@ from gym_soarm.rl.runs import (
     CURVE_CSV,
     CURVE_FIELDS,
     CURVE_PNG,
-    ROUND_STRIDE,
-    SEED_STRIDE,
     training_seeds,
+    write_run_settings,
 )
 from gym_soarm.tasks.suites import EVAL_SEED
 
@@ -109,26 +106,21 @@ def train_pixels(
         )
 
     def write_settings() -> None:
-        (out_path / SETTINGS_FILE).write_text(
-            json.dumps(
-                {
-                    "format": POLICY_FORMAT,
-                    "policy": PIXEL_POLICY,
-                    "algo": algo,
-                    "task": spec.name,
-                    "seed": seed,
-                    "steps": run.env_steps,
-                    "env": env_kwargs,
-                    "cameras": list(cameras),
-                    "image_size": [height, width],
-                    "observation_names": observation_names,
-                    "recipe": settings,
-                    "training_seeds": f"{SEED_STRIDE} * (seed + 1) + {ROUND_STRIDE} * round + k",
-                    "gym_soarm_version": __version__,
-                },
-                indent=2,
-            )
-            + "\n"
+        write_run_settings(
+            out_path / SETTINGS_FILE,
+            {
+                "format": POLICY_FORMAT,
+                "policy": PIXEL_POLICY,
+                "algo": algo,
+                "task": spec.name,
+                "seed": seed,
+                "steps": run.env_steps,
+                "env": env_kwargs,
+                "cameras": list(cameras),
+                "image_size": [height, width],
+                "observation_names": observation_names,
+                "recipe": settings,
+            },
         )
 
     def save_model() -> None:

@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from gym_soarm.rl.runs import check_run_numbers
 from gym_soarm.validation import check_int, check_number
 
 logger = logging.getLogger(__name__)
@@ -423,20 +424,13 @@ class PixelPolicy:
 
 def check_pixel_settings(algo: str, settings: dict[str, Any]) -> dict[str, Any]:
     """Check the numbers of a pixel bc/dagger recipe; ValueError naming the key."""
+    check_run_numbers(algo, settings, max_rounds=98)
     params = settings["algo"]
-    settings["n_envs"] = check_int("n_envs", settings["n_envs"], 1)
-    settings["torch_threads"] = check_int("torch_threads", settings["torch_threads"], 1)
-    settings["eval_episodes"] = check_int("eval_episodes", settings["eval_episodes"], 1)
-    params["demos"] = check_int("demos", params["demos"], 1, 999)
-    params["dart_std"] = check_number("dart_std", params["dart_std"], 0.0)
-    params["epochs"] = check_int("epochs", params["epochs"], 1)
-    params["batch_size"] = check_int("batch_size", params["batch_size"], 1)
     params["shift_px"] = check_int("shift_px", params["shift_px"], 0)
     params["downsample"] = check_int("downsample", params["downsample"], 1, 8)
-    for key in ("learning_rate", "max_memory_gb"):
-        params[key] = check_number(key, params[key], 0.0)
-        if params[key] == 0:
-            raise ValueError(f"{key} must be a number > 0; got 0.")
+    params["max_memory_gb"] = check_number("max_memory_gb", params["max_memory_gb"], 0.0)
+    if params["max_memory_gb"] == 0:
+        raise ValueError("max_memory_gb must be a number > 0; got 0.")
     for key, size in (("channels", 4), ("hidden", None)):
         value = params[key]
         if (
@@ -451,17 +445,6 @@ def check_pixel_settings(algo: str, settings: dict[str, Any]) -> dict[str, Any]:
                 f"{list(PIXEL_DEFAULTS[key])}); got {value!r}."
             )
         params[key] = list(value)
-    if algo == "dagger":
-        params["rounds"] = check_int("rounds", params["rounds"], 1, 98)
-        params["episodes_per_round"] = check_int(
-            "episodes_per_round", params["episodes_per_round"], 1, 999
-        )
-        params["round_epochs"] = check_int("round_epochs", params["round_epochs"], 1)
-        for key in ("beta0", "beta_decay"):
-            value = check_number(key, params[key], 0.0)
-            if value > 1:
-                raise ValueError(f"{key} must be a number from 0 to 1; got {value!r}.")
-            params[key] = value
     return settings
 
 
