@@ -41,12 +41,16 @@ def _import_dm_control_without_gl() -> None:
 
 _import_dm_control_without_gl()
 
-from gym_soarm.env import SoArmEnv  # noqa: E402
+from gym_soarm import compat  # noqa: E402
+
+compat.install()  # the programs' python -m names and the modules' earlier names
+
+from gym_soarm.envs.env import SoArmEnv  # noqa: E402
+from gym_soarm.envs.snapshot import Snapshot  # noqa: E402
 from gym_soarm.render.backend import GLBackendError  # noqa: E402
 from gym_soarm.render.display import DisplayUnavailableError  # noqa: E402
 from gym_soarm.render.video import save_frames_to_mp4  # noqa: E402
 from gym_soarm.sim.meshes import MeshError  # noqa: E402
-from gym_soarm.snapshot import Snapshot  # noqa: E402
 from gym_soarm.tasks import (  # noqa: E402
     ENV_IDS,
     TaskSpec,

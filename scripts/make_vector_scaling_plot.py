@@ -26,7 +26,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from gym_soarm.tools.bench import VECTOR_SPEEDUP_TARGET
+from gym_soarm.bench.bench import VECTOR_SPEEDUP_TARGET
 
 OUTPUT = Path(__file__).resolve().parents[1] / "docs" / "vector_scaling.png"
 PANEL = (420, 520)  # (height, width) of one panel

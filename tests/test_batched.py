@@ -18,11 +18,11 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import gym_soarm
-from gym_soarm.batched import BatchedVectorEnv, wants_batched
 from gym_soarm.expert import make_expert
 from gym_soarm.sim.arrays import SimArrays
 from gym_soarm.tasks.registry import unregister_task
-from gym_soarm.vector import SoArmVectorEnv
+from gym_soarm.vector.batched import BatchedVectorEnv, wants_batched
+from gym_soarm.vector.processes import SoArmVectorEnv
 
 TASKS = gym_soarm.task_names()
 STATE = {"obs_type": "state"}

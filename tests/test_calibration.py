@@ -11,15 +11,16 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gym_soarm import constants, units
-from gym_soarm.calibration import (
+from gym_soarm import constants
+from gym_soarm.real import units
+from gym_soarm.real.calibration import (
     HOMING_POSE_RAD,
     HOMING_TICKS,
     TICKS_PER_RAD,
     calibrated_units,
     load_calibration,
 )
-from gym_soarm.data.record import record
+from gym_soarm.record.record import record
 
 LOW = np.array(units.SERVO_RANGE_LOW_RAD)
 HIGH = np.array(units.SERVO_RANGE_HIGH_RAD)

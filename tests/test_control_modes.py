@@ -10,12 +10,12 @@ import pytest
 from conftest import COMMON_INFO_KEYS
 from dataset_files import read_dataset
 
-from gym_soarm import control, units
+from gym_soarm.bench.bench import BenchConfig
 from gym_soarm.cli.record import build_parser
-from gym_soarm.data.record import record
+from gym_soarm.envs import control, units
 from gym_soarm.expert import evaluation_resets, make_expert, run_episode
+from gym_soarm.record.record import record
 from gym_soarm.sim.kinematics import downward_rotation
-from gym_soarm.tools.bench import BenchConfig
 
 LIFT = "gym_soarm/LiftCube-v0"
 PICK = "gym_soarm/PickAndPlaceCube-v0"

@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 from dataset_files import decode_video, frame_times, psnr, read_dataset
 
-from gym_soarm import units
 from gym_soarm.data import (
     AUTO_FEATURES,
     QUANTILES,
@@ -21,6 +20,7 @@ from gym_soarm.data import (
     histogram_image_stats,
     numeric_stats,
 )
+from gym_soarm.real import units
 
 FPS = 50
 HEIGHT, WIDTH = 48, 64

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import gym_soarm  # noqa: F401  (registers the environments)
-from gym_soarm.infos import INFO_NUMBERS, InfoReader, InfoWriter, batch, flatten, unflatten
+from gym_soarm.envs.infos import INFO_NUMBERS, InfoReader, InfoWriter, batch, flatten, unflatten
 
 
 def reference(infos: list[dict[str, Any]]) -> dict[str, Any]:

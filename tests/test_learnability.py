@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import gym_soarm
-from gym_soarm.control import CONTROL_MODES, EE_DELTA_LIMIT_M
+from gym_soarm.envs.control import CONTROL_MODES, EE_DELTA_LIMIT_M
 from gym_soarm.expert import evaluation_resets, make_expert
 from gym_soarm.validation import ArgumentTypeError
 

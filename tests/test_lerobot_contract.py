@@ -19,7 +19,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import gym_soarm
-from gym_soarm.env import LEROBOT_ROLLOUT_OPTION
+from gym_soarm.envs.env import LEROBOT_ROLLOUT_OPTION
 
 HEIGHT, WIDTH = 48, 64
 STEP_LIMIT = 4
@@ -115,7 +115,7 @@ def test_lerobot_rollout_option_is_accepted_and_others_are_not():
 CORE_IMPORTS = """
 import sys
 import gymnasium as gym
-import gym_soarm, gym_soarm.units, gym_soarm.data, gym_soarm.record, gym_soarm.expert
+import gym_soarm, gym_soarm.real.units, gym_soarm.data, gym_soarm.record, gym_soarm.expert
 env = gym.make("gym_soarm/LiftCube-v0", obs_type="environment_state_agent_pos", units="lerobot")
 env.reset(seed=0)
 gym_soarm.make_expert(env)

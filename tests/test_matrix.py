@@ -13,8 +13,8 @@ from conftest import COMMON_INFO_KEYS, INFO_KEYS
 
 import gym_soarm
 from gym_soarm import constants
-from gym_soarm.env import OBS_TYPES
-from gym_soarm.units import UNITS
+from gym_soarm.envs.env import OBS_TYPES
+from gym_soarm.real.units import UNITS
 
 HEIGHT, WIDTH = 24, 32
 STEPS = 3

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import gym_soarm
-from gym_soarm.data.record import record
 from gym_soarm.expert import make_expert, run_episode
+from gym_soarm.record.record import record
 from gym_soarm.tasks.cube import UNIFORM_REGION_M
 from gym_soarm.tasks.distractors import DISTRACTORS
 

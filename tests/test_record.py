@@ -14,14 +14,14 @@ import numpy as np
 import pytest
 from dataset_files import decode_video, psnr, read_dataset
 
-from gym_soarm import units
 from gym_soarm.cli.record import main
-from gym_soarm.data.record import (
+from gym_soarm.expert import make_expert
+from gym_soarm.real import units
+from gym_soarm.record.record import (
     default_root,
     parse_size,
     record,
 )
-from gym_soarm.expert import make_expert
 
 LIFT = "Pick up the blue cube and lift it 5 cm above the table."
 

@@ -20,7 +20,7 @@ from dataset_files import decode_video
 
 from gym_soarm.cli.record import build_parser
 from gym_soarm.data.format import SCRATCH_DIR
-from gym_soarm.data.record import record
+from gym_soarm.record.record import record
 
 PIXELS = {"camera_config": "front_wrist", "size": (48, 64)}
 
@@ -236,7 +236,7 @@ def test_workers_that_cannot_start_end_the_recording_with_the_fix(tmp_path):
     # A script fed on stdin: the workers cannot import its main module again and die
     # while starting; the recorder gives up after a few, naming the fix.
     script = (
-        "from gym_soarm.data.record import record\n"
+        "from gym_soarm.record.record import record\n"
         f"record({str(tmp_path / 'ds')!r}, task='LiftCube-v0', episodes=60, seed=0,\n"
         "       camera_config='none', workers=2, progress=False)\n"
     )

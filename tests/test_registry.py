@@ -17,7 +17,7 @@ import pytest
 
 import gym_soarm
 import gym_soarm.expert
-from gym_soarm.data.record import record
+from gym_soarm.record.record import record
 from gym_soarm.sim.arrays import SimArrays, namespace
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
@@ -182,7 +182,7 @@ def test_the_expert_command_line_reports_the_new_task(capsys):
 
 
 def test_the_benchmark_accepts_the_new_task():
-    from gym_soarm.tools.bench import BenchConfig
+    from gym_soarm.bench.bench import BenchConfig
 
     config = BenchConfig.parse("front_only_64x48", task="lift_block")
     assert config.task == "LiftBlock-v0" and config.env_id == "gym_soarm/LiftBlock-v0"

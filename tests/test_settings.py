@@ -18,7 +18,7 @@ import pytest
 
 import gym_soarm  # noqa: F401 - registers the environments
 from gym_soarm import constants
-from gym_soarm.calibration import HOMING_TICKS
+from gym_soarm.bench.bench import BenchConfig
 from gym_soarm.cli import bench as bench_cli
 from gym_soarm.cli import evaluate as evaluate_cli
 from gym_soarm.cli import expert as expert_cli
@@ -29,14 +29,14 @@ from gym_soarm.cli import sysid as sysid_cli
 from gym_soarm.cli import teleop as teleop_cli
 from gym_soarm.cli import train as train_cli
 from gym_soarm.cli.options import SETTINGS_DEST, settings_flag, settings_given
-from gym_soarm.data.record import record
-from gym_soarm.data.replay import ReplayDataset, replay_settings
-from gym_soarm.data.sysid import SYSID_SETTINGS
-from gym_soarm.env import SoArmEnv
+from gym_soarm.envs.env import SoArmEnv
+from gym_soarm.envs.settings import EnvSettings, keyword_table, merge_keywords
+from gym_soarm.real.calibration import HOMING_TICKS
+from gym_soarm.real.replay import ReplayDataset, replay_settings
+from gym_soarm.real.sysid import SYSID_SETTINGS
+from gym_soarm.record.record import record
 from gym_soarm.rl.hyperparams import recipe
-from gym_soarm.settings import EnvSettings, keyword_table, merge_keywords
 from gym_soarm.tasks.suites import SelectedTask
-from gym_soarm.tools.bench import BenchConfig
 from gym_soarm.tools.docs import KEYWORDS_PATH, keywords_page
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -120,7 +120,7 @@ BAD_VALUES = [
     ("distractors", 1.0, TypeError, "distractors must be an int"),
     ("control_mode", "torque", ValueError, "control_mode must be one of"),
     ("calibration", 3, TypeError, "calibration must be the path of a LeRobot calibration JSON"),
-    ("dynamics", "", TypeError, "dynamics must be the path of a gym_soarm.dynamics/1 JSON"),
+    ("dynamics", "", TypeError, "dynamics must be the path of a gym_soarm.real.dynamics/1 JSON"),
     ("normalize_actions", 1, TypeError, "normalize_actions must be True or False"),
 ]
 
@@ -180,7 +180,7 @@ def test_settings_and_keywords_together_are_refused():
         gym.make("gym_soarm/LiftCube-v0", settings=settings, servo_model="sts3215")
     with pytest.raises(TypeError, match=r"either settings or keywords.*task"):
         gym.make("gym_soarm/PushCube-v0", settings=settings)
-    with pytest.raises(TypeError, match=r"settings must be a gym_soarm.settings.EnvSettings"):
+    with pytest.raises(TypeError, match=r"settings must be a gym_soarm.envs.settings.EnvSettings"):
         gym.make("gym_soarm/LiftCube-v0", settings={"obs_type": "state"})
 
 

@@ -10,7 +10,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from gym_soarm.cli import record as record_cli
-from gym_soarm.data.record import record
+from gym_soarm.record.record import record
 from gym_soarm.tasks import BUILTIN_TASKS, get_task
 from gym_soarm.tasks.suites import (
     EVAL_SEED,

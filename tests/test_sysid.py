@@ -17,9 +17,7 @@ import pytest
 
 from gym_soarm import constants
 from gym_soarm.cli.sysid import main
-from gym_soarm.data.record import SETTINGS_PATH, record
-from gym_soarm.data.replay import read_replay_dataset, replay
-from gym_soarm.dynamics import (
+from gym_soarm.real.dynamics import (
     FORMAT,
     JOINT_FIELDS,
     Dynamics,
@@ -27,6 +25,8 @@ from gym_soarm.dynamics import (
     read_model_dynamics,
     write_dynamics,
 )
+from gym_soarm.real.replay import read_replay_dataset, replay
+from gym_soarm.record.record import SETTINGS_PATH, record
 
 KP, KV = 998.0, 15.0  # the model's servo gains
 TRUE_KP, TRUE_KV, TRUE_DELAY = 0.7 * KP, 1.6 * KV, 1
@@ -148,7 +148,7 @@ def test_physics_randomisation_draws_around_the_fitted_figures(tmp_path):
 
 
 BAD_FILES = [
-    ({"format": "gym_soarm.dynamics/2"}, "field 'format' is 'gym_soarm.dynamics/2'"),
+    ({"format": "gym_soarm.real.dynamics/2"}, "field 'format' is 'gym_soarm.real.dynamics/2'"),
     ({"joints": {}}, "field 'format' is None"),
     ({"format": FORMAT, "joints": {"elbow": {"kp": 1.0}}}, "unknown joint 'elbow'"),
     ({"format": FORMAT, "joints": {"elbow_flex": {"kp": -5.0}}}, r"joints\.elbow_flex\.kp must be a positive gain"),

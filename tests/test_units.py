@@ -9,7 +9,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gym_soarm import constants, units
+from gym_soarm import constants
+from gym_soarm.real import units
 from gym_soarm.sim.physics import SoArmPhysics
 
 LOW = np.array(units.SERVO_RANGE_LOW_RAD)

@@ -17,8 +17,8 @@ from conftest import SMALL
 from gymnasium.vector import AutoresetMode
 
 import gym_soarm
-from gym_soarm.batched import BatchedVectorEnv
-from gym_soarm.vector import SoArmVectorEnv, WorkerDiedError
+from gym_soarm.vector.batched import BatchedVectorEnv
+from gym_soarm.vector.processes import SoArmVectorEnv, WorkerDiedError
 
 ENV_ID = "gym_soarm/LiftCube-v0"
 STATE = {"obs_type": "environment_state_agent_pos"}
@@ -100,7 +100,7 @@ def compare_with_sync(
 
 def test_every_id_has_the_vector_entry_point():
     for env_id in gym_soarm.ENV_IDS:
-        assert gym.spec(env_id).vector_entry_point == "gym_soarm.batched:make_vector_env"
+        assert gym.spec(env_id).vector_entry_point == "gym_soarm.vector.batched:make_vector_env"
 
 
 @pytest.mark.parametrize("vector_env", ["processes", "batched"])
@@ -373,7 +373,7 @@ def test_a_block_that_raises_leaves_the_others_readable():
 
 CTRL_C_SCRIPT = """
 import sys, numpy as np
-from gym_soarm.vector import SoArmVectorEnv
+from gym_soarm.vector.processes import SoArmVectorEnv
 if __name__ == "__main__":
     envs = SoArmVectorEnv(4, num_processes=2, task="LiftCube-v0", obs_type="state")
     envs.reset(seed=0)

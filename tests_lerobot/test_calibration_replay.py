@@ -23,8 +23,9 @@ pytest.importorskip("scservo_sdk")  # lerobot[feetech]: the follower's motor bus
 from lerobot.motors import MotorCalibration
 from lerobot.robots.so_follower import SOFollower, SOFollowerRobotConfig
 
-from gym_soarm import constants, units
-from gym_soarm.calibration import calibrated_units
+from gym_soarm import constants
+from gym_soarm.real import units
+from gym_soarm.real.calibration import calibrated_units
 
 NAMES = constants.JOINT_NAMES
 LOW = np.array(units.SERVO_RANGE_LOW_RAD)
@@ -157,7 +158,7 @@ def lerobot_dataset(tmp_path_factory) -> tuple[Path, list[np.ndarray]]:
 
 
 def test_replay_reads_lerobots_dataset_and_tracks_it(lerobot_dataset, tmp_path):
-    from gym_soarm.data.replay import read_replay_dataset
+    from gym_soarm.real.replay import read_replay_dataset
 
     root, states = lerobot_dataset
     read = read_replay_dataset(root)

@@ -23,8 +23,8 @@ from lerobot.datasets.lerobot_dataset import LeRobotDataset
 from lerobot.envs.factory import make_env
 from lerobot.envs.utils import env_to_policy_features, preprocess_observation
 
-from gym_soarm import units
 from gym_soarm.lerobot import SoArmEnvConfig
+from gym_soarm.real import units
 
 ROOT = Path(__file__).resolve().parents[1]
 # Where the documentation lives; the command block is looked up in all of it.

@@ -24,8 +24,8 @@ from lerobot.datasets.lerobot_dataset import LeRobotDataset
 from lerobot.robots.utils import make_robot_from_config
 from lerobot.utils.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError
 
-from gym_soarm import units
 from gym_soarm.lerobot import SimSoArmFollower, SimSoArmFollowerConfig
+from gym_soarm.real import units
 
 HERE = Path(__file__).resolve().parent
 NAMES = list(units.FEATURE_NAMES)

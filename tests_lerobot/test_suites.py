@@ -22,11 +22,11 @@ pytest.importorskip("lerobot")
 from lerobot.datasets.lerobot_dataset import LeRobotDataset
 from lerobot.envs.factory import make_env
 
-from gym_soarm.data.record import record
 from gym_soarm.lerobot import SoArmEnvConfig
+from gym_soarm.record.record import record
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
-from gym_soarm.vector import SoArmVectorEnv
+from gym_soarm.vector.processes import SoArmVectorEnv
 
 BIN = Path(sys.executable).parent  # LeRobot's command lines, beside this Python
 CORE = ("ReachTarget-v0", "LiftCube-v0", "PickAndPlaceCube-v0", "PushCube-v0")

@@ -21,8 +21,9 @@ import pytest
 
 pytest.importorskip("lerobot")
 
-from gym_soarm import constants, units
-from gym_soarm.data.replay import SIM_FPS, frame_of_steps
+from gym_soarm import constants
+from gym_soarm.real import units
+from gym_soarm.real.replay import SIM_FPS, frame_of_steps
 
 FPS = 30
 KP, KV = 998.0, 15.0
@@ -83,7 +84,11 @@ def lerobot_dataset(tmp_path_factory) -> tuple[Path, Path]:
     joints = {name: {"kp": TRUE_KP, "kv": TRUE_KV} for name in constants.JOINT_NAMES}
     true.write_text(
         json.dumps(
-            {"format": "gym_soarm.dynamics/1", "joints": joints, "control_delay_steps": TRUE_DELAY}
+            {
+                "format": "gym_soarm.real.dynamics/1",
+                "joints": joints,
+                "control_delay_steps": TRUE_DELAY,
+            }
         )
     )
     root = folder / "so101_sysid"

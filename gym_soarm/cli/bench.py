@@ -1,9 +1,9 @@
 """``python -m gym_soarm.bench`` (``gym-soarm-bench``): the speed benchmark.
 
-Parses the command line, runs :func:`gym_soarm.tools.bench.run` and prints its tables,
+Parses the command line, runs :func:`gym_soarm.bench.bench.run` and prints its tables,
 checked targets and the JSON file it wrote. ``--worker`` (hidden) is how the benchmark
 starts each measurement in a fresh process of its own
-(:func:`gym_soarm.tools.bench.serve_worker`).
+(:func:`gym_soarm.bench.bench.serve_worker`).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from gym_soarm.cli.options import add_settings_arguments, settings_given
-from gym_soarm.settings import EnvSettings
+from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.tasks import DEFAULT_TASK
 from gym_soarm.tools import bench, bench_vector
 

@@ -1,6 +1,6 @@
-"""``python -m gym_soarm.tools.bench_vector``: the scaling of vector environments alone.
+"""``python -m gym_soarm.bench.bench_vector``: the scaling of vector environments alone.
 
-Parses the command line, runs :func:`gym_soarm.tools.bench_vector.measure` and prints its
+Parses the command line, runs :func:`gym_soarm.bench.bench_vector.measure` and prints its
 table (``python -m gym_soarm.bench --vector-scaling`` measures the same in the benchmark).
 """
 
@@ -16,7 +16,7 @@ from gym_soarm.tools import bench_vector
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; prints a table (and writes JSON with ``--json``)."""
-    parser = argparse.ArgumentParser(prog="python -m gym_soarm.tools.bench_vector")
+    parser = argparse.ArgumentParser(prog="python -m gym_soarm.bench.bench_vector")
     parser.add_argument("--env-id", default=bench_vector.DEFAULT_ENV_ID)
     parser.add_argument("--num-envs", default="1,2,4,8,16", help="counts, comma-separated")
     parser.add_argument("--obs", default="state", help="'state' or a camera config")

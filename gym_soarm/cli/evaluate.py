@@ -20,7 +20,7 @@ from gym_soarm.cli.options import (
     settings_except,
     settings_given,
 )
-from gym_soarm.settings import merge_keywords
+from gym_soarm.envs.settings import merge_keywords
 from gym_soarm.tasks import get_task, task_names
 from gym_soarm.tasks.suites import EVAL_SEED
 

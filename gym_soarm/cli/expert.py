@@ -24,9 +24,9 @@ from gym_soarm.cli.options import (
     settings_from_args,
     task_selection,
 )
+from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.expert import EXPERT_KINDS, EpisodeResult, evaluate, evaluate_protocol
 from gym_soarm.expert.perturbed import PERTURBATIONS, PerturbedResult, evaluate_perturbed
-from gym_soarm.settings import EnvSettings
 from gym_soarm.tasks import get_task, task_names
 from gym_soarm.tasks.suites import (
     EVAL_SEED,

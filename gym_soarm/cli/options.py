@@ -1,5 +1,5 @@
 """Command-line options shared by gym_soarm's programs, and the flags generated from
-:class:`gym_soarm.settings.EnvSettings` (:func:`add_settings_arguments`)."""
+:class:`gym_soarm.envs.settings.EnvSettings` (:func:`add_settings_arguments`)."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from gym_soarm import constants
-from gym_soarm.data.replay import REPLAY_TASK
-from gym_soarm.settings import EnvSettings, setting_fields
+from gym_soarm.envs.settings import EnvSettings, setting_fields
+from gym_soarm.real.replay import REPLAY_TASK
+from gym_soarm.real.units import UNITS
 from gym_soarm.tasks import task_names, task_spellings
 from gym_soarm.tasks.suites import resolve_selection
-from gym_soarm.units import UNITS
 
 
 def task_selection(text: str) -> str:
@@ -148,7 +148,7 @@ def add_settings_arguments(
     description: str | None = "gym.make keywords (see docs/keywords.md)",
     default_text: str | None = None,
 ) -> tuple[str, ...]:
-    """Add a flag per :class:`~gym_soarm.settings.EnvSettings` field, generated from it.
+    """Add a flag per :class:`~gym_soarm.envs.settings.EnvSettings` field, generated from it.
 
     Every field gets ``--field-name`` (its dest is the field's name), except those in
     ``exclude`` (the program sets them itself or has its own flag for them). The flag
@@ -229,7 +229,7 @@ def settings_from_args(
     base: EnvSettings | Mapping[str, Any] | None = None,
     **fixed: Any,
 ) -> EnvSettings:
-    """The :class:`~gym_soarm.settings.EnvSettings` of parsed flags.
+    """The :class:`~gym_soarm.envs.settings.EnvSettings` of parsed flags.
 
     ``base`` (settings or keywords; default: the defaults) is overlaid with the flags'
     values (None: not given, the base's stays), then with ``fixed`` (what the program

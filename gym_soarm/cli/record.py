@@ -1,6 +1,6 @@
 """``python -m gym_soarm.record``: record scripted-expert demonstrations as a LeRobotDataset.
 
-The recording itself is :func:`gym_soarm.data.record.record`; this module parses the command
+The recording itself is :func:`gym_soarm.record.record.record`; this module parses the command
 line and reports on the terminal.
 """
 
@@ -17,14 +17,14 @@ from gym_soarm.cli.options import (
     settings_from_args,
     task_selection,
 )
-from gym_soarm.data.record import (
+from gym_soarm.envs.settings import EnvSettings
+from gym_soarm.record.record import (
     CAMERA_CONFIG_CHOICES,
     DEFAULT_RECORD_TASK,
     KEEP_CHOICES,
     default_root,
     record,
 )
-from gym_soarm.settings import EnvSettings
 from gym_soarm.tasks import task_names
 from gym_soarm.tasks.suites import SUITE_NAMES, distinct_tasks, resolve_selection
 from gym_soarm.validation import parse_size

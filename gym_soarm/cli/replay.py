@@ -1,6 +1,6 @@
 """``python -m gym_soarm.replay``: drive the simulation with a LeRobot SO-101 dataset's actions.
 
-The replay itself is :func:`gym_soarm.data.replay.replay`; this module parses the command
+The replay itself is :func:`gym_soarm.real.replay.replay`; this module parses the command
 line, prints the per-joint tracking error and writes the JSON and the plot.
 """
 
@@ -19,7 +19,7 @@ from gym_soarm.cli.options import (
     settings_except,
     settings_given,
 )
-from gym_soarm.data.replay import REPLAY_OVERRIDES, plot_replay, replay
+from gym_soarm.real.replay import REPLAY_OVERRIDES, plot_replay, replay
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -53,7 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def replay_arguments(args: argparse.Namespace) -> dict[str, Any]:
-    """The keywords of :func:`gym_soarm.data.replay.replay` that the flags give."""
+    """The keywords of :func:`gym_soarm.real.replay.replay` that the flags give."""
     return {
         "episodes": args.episode,
         "units": args.units,

@@ -1,7 +1,7 @@
 """``python -m gym_soarm.cli.settings_table``: write (or check) ``docs/keywords.md``.
 
 The page is :func:`gym_soarm.tools.docs.keywords_page`, generated from the fields of
-:class:`gym_soarm.settings.EnvSettings`; a test keeps the committed page current.
+:class:`gym_soarm.envs.settings.EnvSettings`; a test keeps the committed page current.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m gym_soarm.cli.settings_table",
         description="Write docs/keywords.md, the table of gym.make keywords generated from "
-        "gym_soarm.settings.EnvSettings.",
+        "gym_soarm.envs.settings.EnvSettings.",
     )
     parser.add_argument(
         "--out", default=KEYWORDS_PATH, metavar="PATH", help=f"the page (default {KEYWORDS_PATH})"

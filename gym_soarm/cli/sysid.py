@@ -1,6 +1,6 @@
 """``python -m gym_soarm.sysid``: fit the simulation's servos and joints to a LeRobot dataset.
 
-The fit itself is :func:`gym_soarm.data.sysid.fit_dynamics`; this module parses the
+The fit itself is :func:`gym_soarm.real.sysid.fit_dynamics`; this module parses the
 command line, checks where the results go before fitting, prints the per-joint tracking
 error before and after and writes the dynamics file and the plot.
 """
@@ -18,8 +18,8 @@ from gym_soarm.cli.options import (
     settings_except,
     settings_given,
 )
-from gym_soarm.data.sysid import DELAYS, FIT_ITERATIONS, SYSID_SETTINGS, fit_dynamics, plot_fit
-from gym_soarm.dynamics import write_dynamics
+from gym_soarm.real.dynamics import write_dynamics
+from gym_soarm.real.sysid import DELAYS, FIT_ITERATIONS, SYSID_SETTINGS, fit_dynamics, plot_fit
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -28,7 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Replay a LeRobot SO-101 dataset's actions in the simulation and fit, per "
         "joint, the servo gains (kp, kv) and the joint's damping, armature and friction loss, "
         "and the control delay, to its recorded observation.state. Writes a "
-        "gym_soarm.dynamics/1 file for dynamics=PATH / --dynamics.",
+        "gym_soarm.real.dynamics/1 file for dynamics=PATH / --dynamics.",
     )
     parser.add_argument("--root", required=True, help="the dataset folder (holds meta/info.json)")
     parser.add_argument(

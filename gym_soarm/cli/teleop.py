@@ -22,7 +22,8 @@ from gym_soarm.cli.options import (
     settings_from_args,
 )
 from gym_soarm.data import LeRobotDatasetWriter
-from gym_soarm.data.record import (
+from gym_soarm.envs.settings import EnvSettings
+from gym_soarm.record.record import (
     CAMERA_CONFIG_CHOICES,
     CAMERA_CONFIG_NONE,
     DEFAULT_RECORD_TASK,
@@ -33,7 +34,6 @@ from gym_soarm.data.record import (
     write_recording_settings,
 )
 from gym_soarm.render.display import window_support_problem
-from gym_soarm.settings import EnvSettings
 from gym_soarm.tasks import get_task, task_names, task_spellings
 from gym_soarm.teleop.gamepad import Gamepad, import_pygame
 from gym_soarm.teleop.input import KEY_HELP, MAX_SPEED_M_S, MAX_TURN_SPEED_RAD_S, TeleopSpeeds

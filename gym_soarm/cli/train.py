@@ -27,8 +27,8 @@ from gym_soarm.cli.options import (
     int_at_least,
     settings_given,
 )
+from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.rl.hyperparams import IMITATION, TRAINERS, VEC_ENVS
-from gym_soarm.settings import EnvSettings
 from gym_soarm.tasks import task_names
 
 

@@ -3,7 +3,7 @@
 :mod:`~gym_soarm.data.format` (paths and feature declarations),
 :mod:`~gym_soarm.data.stats` (per-feature statistics),
 :mod:`~gym_soarm.data.video_files` (H.264 episodes), :mod:`~gym_soarm.data.writer`
-(:class:`LeRobotDatasetWriter`) and :mod:`~gym_soarm.data.record` (the recorder).
+(:class:`LeRobotDatasetWriter`) and :mod:`~gym_soarm.record.record` (the recorder).
 """
 
 from __future__ import annotations

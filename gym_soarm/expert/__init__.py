@@ -26,7 +26,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from gym_soarm.env import SoArmEnv
+from gym_soarm.envs.env import SoArmEnv
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, ScriptedExpert
 from gym_soarm.tasks.state_expert import DEFAULT_STATE_CONFIG, StateExpert, StateExpertConfig

@@ -12,8 +12,9 @@ from lerobot.envs.configs import EnvConfig
 
 import gym_soarm  # noqa: F401  (registers gym_soarm/<task> wherever this config is unpickled)
 from gym_soarm import constants
-from gym_soarm.control import CONTROL_MODES
-from gym_soarm.dynamics import load_dynamics
+from gym_soarm.envs.control import CONTROL_MODES
+from gym_soarm.real.dynamics import load_dynamics
+from gym_soarm.real.units import UNITS, check_wrist_roll_offset, joint_units
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
 from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.distractors import MAX_DISTRACTORS
@@ -23,7 +24,6 @@ from gym_soarm.tasks.suites import (
     resolve_selection,
     shared_state_names,
 )
-from gym_soarm.units import UNITS, check_wrist_roll_offset, joint_units
 from gym_soarm.validation import check_choice, check_int, parse_cameras
 
 ACTION = "action"
@@ -98,7 +98,7 @@ class SoArmEnvConfig(EnvConfig):
         units: ``"lerobot"`` (body degrees, gripper 0-100, the real follower's units),
             ``"lerobot_range"`` or ``"radians"``.
         wrist_roll_offset_deg: with LeRobot units, the real arm's wrist_roll reading
-            when the model's wrist_roll is at 0 rad (see :mod:`gym_soarm.units`).
+            when the model's wrist_roll is at 0 rad (see :mod:`gym_soarm.real.units`).
         visual_randomization: ``"none"``, ``"light"`` or ``"heavy"``.
         physics_randomization: ``"none"``, ``"light"`` or ``"heavy"``.
         servo_model: ``"ideal"`` or ``"sts3215"``.
@@ -106,7 +106,7 @@ class SoArmEnvConfig(EnvConfig):
         distractors: extra objects on the table, 0 to 4.
         control_mode: what the policy's action means: ``"joint_pos"``,
             ``"joint_delta"``, ``"ee_delta"`` or ``"ee_pose"`` (see
-            :mod:`gym_soarm.control`); six values in every mode.
+            :mod:`gym_soarm.envs.control`); six values in every mode.
         vector_env: how ``create_envs`` batches ``n_envs`` environments: ``"native"``
             (gym_soarm's vector env on worker processes,
             :class:`gym_soarm.vector.SoArmVectorEnv`), ``"async"`` (Gymnasium's
@@ -117,10 +117,10 @@ class SoArmEnvConfig(EnvConfig):
             one.
         calibration: with LeRobot units, the path of a real SO-101 follower's
             calibration JSON, so the env speaks that arm's values (see
-            :mod:`gym_soarm.calibration`); None for the fixed maps.
-        dynamics: the path of a ``gym_soarm.dynamics/1`` file (servo gains, joint
+            :mod:`gym_soarm.real.calibration`); None for the fixed maps.
+        dynamics: the path of a ``gym_soarm.real.dynamics/1`` file (servo gains, joint
             figures and control delay fitted to a real arm by ``python -m
-            gym_soarm.sysid``, see :mod:`gym_soarm.dynamics`); None for the model's own.
+            gym_soarm.sysid``, see :mod:`gym_soarm.real.dynamics`); None for the model's own.
 
     A suite's own settings (``soarm_robust``'s randomisation) override the fields above
     for its tasks.

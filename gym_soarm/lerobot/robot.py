@@ -10,7 +10,7 @@ would drive the real follower::
         --display_data=true
 
 The robot speaks the follower's ``<motor>.pos`` values (body joints in degrees, gripper
-0 to 100; :mod:`gym_soarm.units`), so a calibrated leader's actions go straight in, and
+0 to 100; :mod:`gym_soarm.real.units`), so a calibrated leader's actions go straight in, and
 its observation holds the same six values plus one image per simulated camera. Each
 action advances the simulation by the wall-clock time since the previous one, in 20 ms
 steps, so the arm moves at the leader's pace whatever the loop's rate.
@@ -31,11 +31,11 @@ from lerobot.robots.robot import Robot
 from lerobot.utils.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError
 
 from gym_soarm import constants
-from gym_soarm.env import SoArmEnv
+from gym_soarm.envs.env import SoArmEnv
 from gym_soarm.lerobot.config import check_task
+from gym_soarm.real.units import FEATURE_NAMES, LEROBOT, UNITS, check_wrist_roll_offset
 from gym_soarm.render.backend import RENDER_QUALITIES
 from gym_soarm.tasks import DEFAULT_TASK
-from gym_soarm.units import FEATURE_NAMES, LEROBOT, UNITS, check_wrist_roll_offset
 from gym_soarm.validation import check_choice, check_image_size, parse_cameras
 
 logger = logging.getLogger(__name__)
@@ -58,7 +58,7 @@ class SimSoArmFollowerConfig(RobotConfig):
         units: ``"lerobot"`` (body degrees, gripper 0 to 100, what a leader calibrated
             by LeRobot >= 0.4.4 sends), ``"lerobot_range"`` (-100 to 100) or ``"radians"``.
         wrist_roll_offset_deg: the leader's wrist_roll reading when the model's wrist_roll
-            is at 0 rad (see :mod:`gym_soarm.units`).
+            is at 0 rad (see :mod:`gym_soarm.real.units`).
         steps_per_action: 20 ms simulation steps per action; 0 follows the wall clock
             (the time since the previous action, 1 to 10 steps).
         seed: seed of the scene's first reset (where the task's objects start); None draws one.

@@ -25,7 +25,7 @@ from gym_soarm import constants
 from gym_soarm.render.display import require_windows
 
 if TYPE_CHECKING:
-    from gym_soarm.env import SoArmEnv
+    from gym_soarm.envs.env import SoArmEnv
 
 CAMERA_KEYS: dict[str, str] = {
     "1": "overview_camera",

@@ -3,7 +3,7 @@
 One table, as rl-baselines3-zoo keeps one file of hyperparameters per algorithm: the
 ``"default"`` row of an algorithm applies to every task, and a task's own row overrides
 its keys (``env`` and ``algo`` are merged key by key). Every recipe learns from
-``obs_type="state"`` with ``normalize_actions=True`` (see :class:`gym_soarm.env.SoArmEnv`).
+``obs_type="state"`` with ``normalize_actions=True`` (see :class:`gym_soarm.envs.env.SoArmEnv`).
 
 Keys of a recipe:
 

@@ -59,6 +59,7 @@ from typing import Any
 
 import numpy as np
 
+from gym_soarm.envs.settings import merge_keywords
 from gym_soarm.expert import make_expert
 from gym_soarm.rl.curves import TrainResult, pyplot, write_curve_png
 from gym_soarm.rl.evaluation import (
@@ -88,7 +89,6 @@ from gym_soarm.rl.runs import (
     training_seeds,
     write_run_settings,
 )
-from gym_soarm.settings import merge_keywords
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
 from gym_soarm.validation import ArgumentTypeError, check_int

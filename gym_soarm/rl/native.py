@@ -2,7 +2,7 @@
 
 ``python -m gym_soarm.train`` steps its environments through :class:`NativeVecEnv` when a
 recipe says ``vec_env="native"`` (the default): for state observations the
-:class:`gym_soarm.batched.BatchedVectorEnv` (every simulation in one ``mujoco.batch``
+:class:`gym_soarm.vector.batched.BatchedVectorEnv` (every simulation in one ``mujoco.batch``
 call, the task scored as arrays), for pixels the worker processes of
 :class:`gym_soarm.vector.SoArmVectorEnv`, seen through SB3's ``VecEnv`` interface. It gives what SB3's ``DummyVecEnv`` over the same ``gym.make``
 environments gives, bit for bit: the same seeds (environment ``i`` gets ``seed + i``),
@@ -22,8 +22,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
-from gym_soarm.batched import make_vector_env
 from gym_soarm.tasks import get_task
+from gym_soarm.vector.batched import make_vector_env
 
 
 def _one(info: dict[str, Any], i: int) -> dict[str, Any]:
@@ -46,7 +46,7 @@ class NativeVecEnv(VecEnv):
         num_processes: worker processes that step them (``vector_env="processes"``;
             default: one per CPU).
         vector_env: ``"auto"`` (default: batched for state observations), ``"batched"``
-            or ``"processes"`` (see :func:`gym_soarm.batched.make_vector_env`).
+            or ``"processes"`` (see :func:`gym_soarm.vector.batched.make_vector_env`).
     """
 
     def __init__(

@@ -468,7 +468,7 @@ def store_bound(
     """The cameras, image height and width, bytes a stored step, the steps a run could
     store at most and the steps ``max_memory_gb`` holds; a ValueError when the first is
     over the second (before anything runs)."""
-    from gym_soarm.settings import EnvSettings
+    from gym_soarm.envs.settings import EnvSettings
 
     params = settings["algo"]
     resolved = EnvSettings.from_kwargs(task=spec.name, **settings["env"])

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from gym_soarm import __version__
+from gym_soarm.envs.settings import merge_keywords
 from gym_soarm.rl.curves import (
     CURVE_CSV,
     CURVE_FIELDS,
@@ -57,7 +58,6 @@ from gym_soarm.rl.evaluation import (
     score,
 )
 from gym_soarm.rl.hyperparams import ALGORITHMS, IMITATION, POLICY_CLASSES, VEC_ENVS, recipe
-from gym_soarm.settings import merge_keywords
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
 from gym_soarm.validation import check_choice, check_int
@@ -259,7 +259,7 @@ def train(
             the episodes and so the run are the same in all three.
         init: PPO only: a policy folder to start from (see the module's documentation).
         env: ``gym.make`` keywords over the recipe's environment (e.g. ``{"dynamics":
-            PATH}``); checked as :class:`gym_soarm.settings.EnvSettings` checks them, and
+            PATH}``); checked as :class:`gym_soarm.envs.settings.EnvSettings` checks them, and
             stored in the folder's ``settings.json`` (evaluation uses them).
 
     Raises:

@@ -2,7 +2,7 @@
 
 Damped least squares on MuJoCo's Jacobian of the ``grasp_center`` site, on a private
 ``mujoco.MjData`` so the environment's state is never touched. The scripted experts
-and the end-effector control modes (:mod:`gym_soarm.control`) use it.
+and the end-effector control modes (:mod:`gym_soarm.envs.control`) use it.
 
 **The jaws' pose.** The shoulder lift, elbow and wrist flex axes are parallel and
 horizontal, so those joints move the wrist in one vertical plane, the *arm's plane*,

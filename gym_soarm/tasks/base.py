@@ -7,7 +7,7 @@ the step limit, the scene's objects and fixtures and the instruction. Registerin
 spec (:func:`gym_soarm.tasks.register_task`) is all it takes for ``gym.make``, the
 expert, the recorder, the LeRobot config and the benchmark to know the task.
 
-The environment (:class:`gym_soarm.env.SoArmEnv`) is a thin adapter: it validates
+The environment (:class:`gym_soarm.envs.env.SoArmEnv`) is a thin adapter: it validates
 arguments, steps the physics, renders cameras and calls the task's hooks. dm_control
 provides the physics (``dm_control.mujoco.Physics``: named access, reset contexts);
 the task is this small protocol of our own, so no hook exists that nobody calls.
@@ -19,7 +19,7 @@ ManiSkill writes its tasks): :meth:`Task.evaluate`, :meth:`Task.compute_reward_t
 :meth:`Task.compute_info` and the state fields read a
 :class:`~gym_soarm.sim.arrays.SimArrays` and answer one value per environment. One
 environment runs the same code on its own unbatched arrays; the batched vector env
-(:mod:`gym_soarm.batched`) scores all its simulations in one call. The code uses the array API only (NumPy here, torch tensors
+(:mod:`gym_soarm.vector.batched`) scores all its simulations in one call. The code uses the array API only (NumPy here, torch tensors
 the same), so another physics backend hands over its arrays and the tasks stay as they
 are. Resets and placement stay per environment, on the physics.
 """

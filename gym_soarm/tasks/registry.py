@@ -15,8 +15,8 @@ from gymnasium.envs.registration import parse_env_id, register, registry
 from gym_soarm.tasks.base import TaskSpec
 from gym_soarm.validation import ArgumentTypeError
 
-ENTRY_POINT = "gym_soarm.env:SoArmEnv"
-VECTOR_ENTRY_POINT = "gym_soarm.batched:make_vector_env"
+ENTRY_POINT = "gym_soarm.envs.env:SoArmEnv"
+VECTOR_ENTRY_POINT = "gym_soarm.vector.batched:make_vector_env"
 
 _TASKS: dict[str, TaskSpec] = {}
 _SPELLINGS: dict[str, str] = {}  # name, alias or env id -> name

@@ -20,7 +20,7 @@ import gymnasium as gym
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.control import ControlMode
+from gym_soarm.envs.control import ControlMode
 from gym_soarm.sim.kinematics import ArmKinematics, downward_rotation
 from gym_soarm.sim.physics import SoArmPhysics
 

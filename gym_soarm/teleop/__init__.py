@@ -20,7 +20,7 @@ ESC or Q                    quit (saved episodes stay; so on closing the window,
 
 A held key keeps moving (0.1 m/s and 1 rad/s of simulated time by default). With
 ``--root`` or ``--repo-id`` the episodes are recorded as a LeRobotDataset v3.0 with the
-recorder's writer and features (:mod:`gym_soarm.data.record`): the action in the chosen
+recorder's writer and features (:mod:`gym_soarm.record.record`): the action in the chosen
 control mode, each episode's instruction, ``next.success`` per frame.
 
 * :mod:`~gym_soarm.teleop.input`: keys and gamepad readings to motions and commands

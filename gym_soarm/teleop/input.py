@@ -3,7 +3,7 @@
 A motion is five numbers in [-1, 1], one per degree of freedom of the jaws in the
 robot's base frame (:data:`MOTION_AXES`: x forward, y to the robot's left, z up, pitch,
 roll); :meth:`TeleopSpeeds.ee_delta` scales it into an ``ee_delta`` action of
-:mod:`gym_soarm.control`. Commands (open/close the gripper, save, discard, quit) are
+:mod:`gym_soarm.envs.control`. Commands (open/close the gripper, save, discard, quit) are
 the other inputs.
 
 The keyboard arrives as key presses only (OpenCV windows report no key releases): a
@@ -19,7 +19,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.control import EE_ANGLE_DELTA_LIMIT_RAD, EE_DELTA_LIMIT_M
+from gym_soarm.envs.control import EE_ANGLE_DELTA_LIMIT_RAD, EE_DELTA_LIMIT_M
 from gym_soarm.validation import check_number
 
 MOTION_AXES: tuple[str, ...] = ("x", "y", "z", "pitch", "roll")

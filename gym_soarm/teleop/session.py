@@ -4,7 +4,7 @@
 The simulation waits at each episode's start until the first key (so no still frames
 lead the episode), then steps in real time, at the environment's 50 Hz or as fast as
 rendering allows. Every step's command is a jaw motion in the robot's base frame (an
-``ee_delta`` of :mod:`gym_soarm.control`), solved into six servo targets by the
+``ee_delta`` of :mod:`gym_soarm.envs.control`), solved into six servo targets by the
 environment's inverse kinematics and sent, and recorded, as the environment's own
 control mode's action (``env.unwrapped.control.action_for_targets``), as the recorder
 does for the scripted expert.
@@ -26,8 +26,9 @@ import gymnasium as gym
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.control import EE_DELTA, make_control
 from gym_soarm.data import LeRobotDatasetWriter
+from gym_soarm.envs.control import EE_DELTA, make_control
+from gym_soarm.real.units import joint_units
 from gym_soarm.render.display import require_windows
 from gym_soarm.render.viewer import draw_text_block
 from gym_soarm.teleop.input import (
@@ -38,7 +39,6 @@ from gym_soarm.teleop.input import (
     KeyboardInput,
     TeleopSpeeds,
 )
-from gym_soarm.units import joint_units
 from gym_soarm.validation import check_choice, check_int
 
 WINDOW_TITLE = "gym_soarm teleop"
@@ -86,7 +86,7 @@ class TeleopSession:
         env: an environment made with ``gym.make`` (any control mode; pixel
             observations are shown, otherwise ``cameras`` are rendered for the window).
         writer: where saved episodes go, with the features of
-            :func:`gym_soarm.data.record.dataset_features` for ``env``; None to drive
+            :func:`gym_soarm.record.record.dataset_features` for ``env``; None to drive
             without recording.
         cameras: the cameras the window shows side by side (and, with pixel
             observations, the ones recorded).

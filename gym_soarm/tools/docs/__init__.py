@@ -43,16 +43,17 @@ KEYWORDS_PATH = "docs/keywords.md"
 
 def keywords_page() -> str:
     """``docs/keywords.md``: every ``gym.make`` keyword, generated from
-    :class:`gym_soarm.settings.EnvSettings` (``python -m gym_soarm.cli.settings_table``)."""
-    from gym_soarm.settings import keyword_table
+    :class:`gym_soarm.envs.settings.EnvSettings` (``python -m gym_soarm.cli.settings_table``)."""
+    from gym_soarm.envs.settings import keyword_table
 
     return (
         "# gym.make keywords\n\n"
-        "<!-- Generated from gym_soarm.settings.EnvSettings by "
+        "<!-- Generated from gym_soarm.envs.settings.EnvSettings by "
         "`python -m gym_soarm.cli.settings_table`; do not edit by hand. -->\n\n"
         'Every keyword of `gym.make("gym_soarm/<Task>-v0", ...)`, each a field of the frozen '
-        "`gym_soarm.settings.EnvSettings` that checks it (see [settings.md](settings.md)). "
+        "`gym_soarm.envs.settings.EnvSettings` that checks it (see [settings.md](settings.md)). "
         "`env.unwrapped.settings` holds an environment's; the programs' flags are the "
         "keywords' names with dashes (`dynamics` -> `--dynamics`). "
-        "The class docstring of `gym_soarm.env.SoArmEnv` tells more of each.\n\n" + keyword_table()
+        "The class docstring of `gym_soarm.envs.env.SoArmEnv` tells more of each.\n\n"
+        + keyword_table()
     )

@@ -99,9 +99,9 @@ import numpy as np
 from gymnasium import spaces
 
 from gym_soarm import constants
+from gym_soarm.real.units import FEATURE_NAMES, JointUnits
 from gym_soarm.sim.kinematics import ArmKinematics, JawPose
 from gym_soarm.sim.physics import SoArmPhysics
-from gym_soarm.units import FEATURE_NAMES, JointUnits
 from gym_soarm.validation import check_choice
 
 JOINT_POS = "joint_pos"

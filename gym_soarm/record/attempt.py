@@ -1,7 +1,7 @@
 """One recording attempt: what it needs, the loop that plays it, where its origin goes.
 
-The recorder (:mod:`gym_soarm.data.record`) and its runners in worker processes
-(:mod:`gym_soarm.data.parallel`) and Ray tasks (:mod:`gym_soarm.data.ray_tasks`) all
+The recorder (:mod:`gym_soarm.record.record`) and its runners in worker processes
+(:mod:`gym_soarm.record.parallel`) and Ray tasks (:mod:`gym_soarm.record.ray_tasks`) all
 play attempts through :func:`record_attempt` from an :class:`AttemptPlan`.
 """
 

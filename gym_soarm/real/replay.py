@@ -18,7 +18,7 @@ wrist offset, calibration file); otherwise ``robot_type`` ``"gym_soarm"`` means 
 and any other means LeRobot's units, degrees by default (``"lerobot"``, the follower's
 default since LeRobot 0.4.4). Arguments given to :func:`replay` win over both. Datasets recorded in LeRobot's older -100..100
 convention need ``units="lerobot_range"``; a real arm's calibration file
-(``calibration``, see :mod:`gym_soarm.calibration`) and ``wrist_roll_offset_deg`` apply
+(``calibration``, see :mod:`gym_soarm.real.calibration`) and ``wrist_roll_offset_deg`` apply
 as in ``gym.make``.
 
 **Time.** The simulation steps at 50 Hz. At another frame rate each 20 ms step sends the
@@ -38,7 +38,7 @@ Giving ``task`` replays every episode in that scene, episode ``k`` reset with
 ``seed + k``.
 
 **The recording's settings.** A gym_soarm recording stores the environment settings it
-was made with (``meta/gym_soarm.json``, see :class:`gym_soarm.settings.EnvSettings`).
+was made with (``meta/gym_soarm.json``, see :class:`gym_soarm.envs.settings.EnvSettings`).
 The replay moves the arm as the recording did: with its ``dynamics`` and
 ``servo_model`` (:data:`ARM_SETTINGS`); replaying each episode in its own task and seed
 it also takes the scene's randomisation, placement and distractors
@@ -60,12 +60,12 @@ from typing import Any
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.data.attempt import VARIATION_PATH
-from gym_soarm.data.record import SETTINGS_PATH, robot_type_for
-from gym_soarm.dynamics import load_dynamics
-from gym_soarm.settings import EnvSettings
+from gym_soarm.envs.settings import EnvSettings
+from gym_soarm.real.dynamics import load_dynamics
+from gym_soarm.real.units import FEATURE_NAMES, RADIANS, UNITS, joint_units
+from gym_soarm.record.attempt import VARIATION_PATH
+from gym_soarm.record.record import SETTINGS_PATH, robot_type_for
 from gym_soarm.tasks import get_task, reach_target
-from gym_soarm.units import FEATURE_NAMES, RADIANS, UNITS, joint_units
 from gym_soarm.validation import check_choice, check_int
 
 REPLAY_TASK = reach_target.SPEC.name
@@ -522,7 +522,7 @@ def replay(
     Args:
         root: a LeRobotDataset v3.0 folder (see the module docstring).
         episodes: episode indices to replay; None for all.
-        units: the dataset's joint units (one of :data:`gym_soarm.units.UNITS`); None to
+        units: the dataset's joint units (one of :data:`gym_soarm.real.units.UNITS`); None to
             read them from a gym_soarm recording's settings, or from ``robot_type``.
         calibration: the recording arm's LeRobot calibration file (LeRobot units only);
             None for the recording's own (gym_soarm recordings) or none.
@@ -532,8 +532,8 @@ def replay(
             episode's recorded task where the dataset lists it, else :data:`REPLAY_TASK`.
         seed: with ``task`` (or a dataset that lists no origins), episode ``k`` resets the
             scene with ``seed + k``.
-        dynamics: a ``gym_soarm.dynamics/1`` file (servo gains, joint figures, control
-            delay; see :mod:`gym_soarm.dynamics`) to replay with; None for the
+        dynamics: a ``gym_soarm.real.dynamics/1`` file (servo gains, joint figures, control
+            delay; see :mod:`gym_soarm.real.dynamics`) to replay with; None for the
             recording's own (gym_soarm recordings store theirs) or the model's own.
         settings: further ``gym.make`` keywords of :data:`REPLAY_OVERRIDES` (e.g.
             ``{"servo_model": "sts3215"}``) over the recording's own.

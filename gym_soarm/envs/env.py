@@ -18,24 +18,24 @@ from dm_control.rl import control
 from gymnasium import spaces
 
 from gym_soarm import constants
-from gym_soarm import snapshot as snapshots
-from gym_soarm.control import ControlMode, make_control
-from gym_soarm.dynamics import apply_dynamics, load_dynamics
+from gym_soarm.envs import snapshot as snapshots
+from gym_soarm.envs.control import ControlMode, make_control
+from gym_soarm.envs.settings import IMAGE_MODALITIES as IMAGE_MODALITIES
+from gym_soarm.envs.settings import OBS_TYPES as OBS_TYPES
+from gym_soarm.envs.settings import PLACEMENTS as PLACEMENTS
+from gym_soarm.envs.settings import REWARD_TYPES as REWARD_TYPES
+from gym_soarm.envs.settings import STATE_OBS_TYPES, EnvSettings
+from gym_soarm.envs.snapshot import Snapshot
+from gym_soarm.real.dynamics import apply_dynamics, load_dynamics
+from gym_soarm.real.units import JointUnits, joint_units
 from gym_soarm.render.camera import CameraRenderer
-from gym_soarm.settings import IMAGE_MODALITIES as IMAGE_MODALITIES
-from gym_soarm.settings import OBS_TYPES as OBS_TYPES
-from gym_soarm.settings import PLACEMENTS as PLACEMENTS
-from gym_soarm.settings import REWARD_TYPES as REWARD_TYPES
-from gym_soarm.settings import STATE_OBS_TYPES, EnvSettings
 from gym_soarm.sim.arrays import SimArrays, item
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.sim.randomization import STS3215, Randomizer, Sts3215Servo
-from gym_soarm.snapshot import Snapshot
 from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.base import Task, TaskSpec
 from gym_soarm.tasks.distractors import place_distractors, with_distractors
 from gym_soarm.tasks.state_observation import StateObservation
-from gym_soarm.units import JointUnits, joint_units
 from gym_soarm.validation import (
     ArgumentTypeError,
     check_choice,
@@ -55,7 +55,7 @@ def _keywords(scope: Mapping[str, Any]) -> dict[str, Any]:
 # option; it is accepted and has no effect.
 LEROBOT_ROLLOUT_OPTION = "lerobot_new_rollout"
 STATE_OPTION = "state"
-"""The reset option that restores a :class:`~gym_soarm.snapshot.Snapshot`."""
+"""The reset option that restores a :class:`~gym_soarm.envs.snapshot.Snapshot`."""
 
 
 def _differs(value: Any, default: Any) -> bool:
@@ -78,7 +78,7 @@ class SoArmEnv(gym.Env):
     default ``control_mode="joint_pos"``: absolute servo targets in radians, in the
     order of the table below. The other modes (changes of the targets, the jaws' pose
     in the robot's base frame or changes of it) are described in
-    :mod:`gym_soarm.control`.
+    :mod:`gym_soarm.envs.control`.
 
     ===  ===============  ==================  =====
     idx  joint/actuator   range (rad)         note
@@ -115,7 +115,7 @@ class SoArmEnv(gym.Env):
     ``agent_pos`` holds the six joint positions in the units of the action: radians by
     default; with ``units="lerobot"`` the body joints in degrees and the gripper in 0 to
     100 (0 = closed), as LeRobot's SO-101 follower; with ``units="lerobot_range"`` the
-    body joints in -100 to 100 (see :mod:`gym_soarm.units`). The action bounds follow.
+    body joints in -100 to 100 (see :mod:`gym_soarm.real.units`). The action bounds follow.
 
     **Reward** (``reward_type="dense"``): the task's named terms (``info["reward_terms"]``,
     each in [0, 1]) weighted to a total in [0, 1]; the step that succeeds (and ends the
@@ -124,7 +124,7 @@ class SoArmEnv(gym.Env):
     than hovering short of it. ``"sparse"``: 1.0 on the success step, else 0.0.
 
     **Snapshots**: ``s = env.unwrapped.save_state()`` is a picklable
-    :class:`~gym_soarm.snapshot.Snapshot` of everything the next step depends on, and
+    :class:`~gym_soarm.envs.snapshot.Snapshot` of everything the next step depends on, and
     ``env.reset(options={"state": s})`` restores it (see :meth:`save_state`).
 
     **Diverging physics**: when a step leaves the simulation with NaN/inf, raises a
@@ -151,16 +151,16 @@ class SoArmEnv(gym.Env):
             or ``"lerobot_range"``.
         wrist_roll_offset_deg: with LeRobot units, the real arm's wrist_roll reading
             (degrees, -180 to 180) when the model's wrist_roll is at 0 rad; wrist_roll
-            values are shifted by it and wrapped to a turn (see :mod:`gym_soarm.units`).
+            values are shifted by it and wrapped to a turn (see :mod:`gym_soarm.real.units`).
         calibration: with LeRobot units, the path of a real SO-101 follower's LeRobot
             calibration JSON: actions, ``agent_pos`` and their bounds are then that arm's
             values, as LeRobot's motor bus normalises them (see
-            :mod:`gym_soarm.calibration`). None: the fixed maps of :mod:`gym_soarm.units`.
-        dynamics: the path of a ``gym_soarm.dynamics/1`` JSON file (fitted to a real arm
+            :mod:`gym_soarm.real.calibration`). None: the fixed maps of :mod:`gym_soarm.real.units`.
+        dynamics: the path of a ``gym_soarm.real.dynamics/1`` JSON file (fitted to a real arm
             by ``python -m gym_soarm.sysid``): its servo gains, joint damping, armature,
             friction loss and control delay replace the model's on this environment's
             own model copy; with ``physics_randomization`` the draws centre on them (see
-            :mod:`gym_soarm.dynamics`). None: the model's own.
+            :mod:`gym_soarm.real.dynamics`). None: the model's own.
         image_modalities: images of each camera in pixel observations: a tuple of
             ``"rgb"``, ``"depth"`` and ``"segmentation"`` (see above); only these are
             rendered.
@@ -178,7 +178,7 @@ class SoArmEnv(gym.Env):
         control_mode: what an action means: ``"joint_pos"`` (absolute servo targets),
             ``"joint_delta"`` (changes of the servo targets), ``"ee_delta"`` (changes of
             the jaws' pose) or ``"ee_pose"`` (the jaws' pose); see
-            :mod:`gym_soarm.control`. The ee modes add ``ik_error_m`` and
+            :mod:`gym_soarm.envs.control`. The ee modes add ``ik_error_m`` and
             ``ik_error_rad`` to ``info``.
         normalize_actions: ``True``: actions are ``Box(-1, 1, (6,), float32)``, mapped
             linearly onto the control mode's own Box (-1 to its low bound, +1 to its
@@ -216,7 +216,7 @@ class SoArmEnv(gym.Env):
         if settings is not None:
             if not isinstance(settings, EnvSettings):
                 raise ArgumentTypeError(
-                    f"settings must be a gym_soarm.settings.EnvSettings; got "
+                    f"settings must be a gym_soarm.envs.settings.EnvSettings; got "
                     f"{type(settings).__name__}. Build one with EnvSettings(...) or "
                     "EnvSettings.from_kwargs(...)."
                 )
@@ -380,7 +380,7 @@ class SoArmEnv(gym.Env):
     @property
     def settings(self) -> EnvSettings:
         """Every keyword this environment was made with, checked and normalised (see
-        :class:`gym_soarm.settings.EnvSettings`); ``gym.make(id, settings=...)`` takes it."""
+        :class:`gym_soarm.envs.settings.EnvSettings`); ``gym.make(id, settings=...)`` takes it."""
         return self._settings
 
     @property
@@ -576,7 +576,7 @@ class SoArmEnv(gym.Env):
         friction, gains and damping), the commanded servo targets, the control delay's
         queue, the STS3215 servo model's state, the control mode's state, the task's
         episode variables, the step count, the reset's variation and the state of
-        ``np_random`` (see :class:`gym_soarm.snapshot.Snapshot`).
+        ``np_random`` (see :class:`gym_soarm.envs.snapshot.Snapshot`).
 
         The settings that do not change the simulation (``obs_type``, ``control_mode``,
         ``normalize_actions``, ``units``, ``reward_type``, image size, cameras, render

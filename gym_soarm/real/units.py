@@ -11,7 +11,7 @@ joint positions as ``<motor>.pos`` values in one of two calibrated conventions:
   -100..100. The gripper stays 0 to 100.
 
 Every conversion is affine per joint (``value = scale * rad + offset``), except the
-wrist_roll offset below; :mod:`gym_soarm.unit_maps` holds those figures once and the
+wrist_roll offset below; :mod:`gym_soarm.real.unit_maps` holds those figures once and the
 environment, the recorder and the dataset use them through this module.
 
 ``wrist_roll`` is calibrated over a full turn, so its zero on a real arm is wherever the
@@ -43,8 +43,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from gym_soarm.calibration import calibrated_units
-from gym_soarm.unit_maps import (
+from gym_soarm.real.calibration import calibrated_units
+from gym_soarm.real.unit_maps import (
     FEATURE_NAMES,
     LEROBOT,
     LEROBOT_RANGE,
@@ -87,7 +87,7 @@ def joint_units(
         wrist_roll_offset_deg: the real arm's wrist_roll reading (degrees, -180..180)
             when the model's wrist_roll is at 0 rad; LeRobot units only.
         calibration: a LeRobot SO-101 follower calibration file: the LeRobot units of
-            that arm instead of the fixed maps here (see :mod:`gym_soarm.calibration`).
+            that arm instead of the fixed maps here (see :mod:`gym_soarm.real.calibration`).
 
     Raises:
         ValueError: ``units`` is not one of :data:`UNITS`, the offset is invalid (see

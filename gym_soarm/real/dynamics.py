@@ -2,11 +2,11 @@
 
 ``dynamics=PATH`` (a ``gym.make`` keyword, the recorder's and the teleop's
 ``--dynamics`` and the LeRobot config's ``dynamics`` field) reads a JSON file of the
-format ``gym_soarm.dynamics/1`` and writes its figures into the environment's own copy
+format ``gym_soarm.real.dynamics/1`` and writes its figures into the environment's own copy
 of the model (nothing is recompiled, other environments are untouched)::
 
     {
-      "format": "gym_soarm.dynamics/1",
+      "format": "gym_soarm.real.dynamics/1",
       "joints": {
         "shoulder_pan": {"kp": 720.5, "kv": 21.3, "damping": 0.55,
                          "armature": 0.031, "frictionloss": 0.07},
@@ -60,7 +60,7 @@ from gym_soarm import constants
 from gym_soarm.sim.randomization import arm_indices, set_servo_gains
 from gym_soarm.validation import ArgumentTypeError
 
-FORMAT = "gym_soarm.dynamics/1"
+FORMAT = "gym_soarm.real.dynamics/1"
 """The ``format`` string of a dynamics file."""
 JOINT_FIELDS: tuple[str, ...] = ("kp", "kv", "damping", "armature", "frictionloss")
 """The figures a joint's entry may hold, each an absolute SI value >= 0 (``kp`` > 0)."""
@@ -116,7 +116,7 @@ def _refuse(source: object, problem: str) -> ValueError:
         f"dynamics file {source}: {problem}. A dynamics file is a JSON object "
         f'{{"format": "{FORMAT}", "joints": {{joint: {{field: value}}}}, '
         '"control_delay_steps": k}, as python -m gym_soarm.sysid writes it (see '
-        "gym_soarm.dynamics)."
+        "gym_soarm.real.dynamics)."
     )
 
 
@@ -128,7 +128,7 @@ def check_dynamics(content: Any, source: object = "<dict>") -> Dynamics:
         source: what to name in messages (the file's path).
 
     Raises:
-        ValueError: the content is not a ``gym_soarm.dynamics/1`` object, names an
+        ValueError: the content is not a ``gym_soarm.real.dynamics/1`` object, names an
             unknown key, joint or field, or a value is not a finite number, is negative
             (``kp`` must be positive) or the delay is not an integer 0 to
             :data:`MAX_DELAY_STEPS`. The message names ``source`` and the field.

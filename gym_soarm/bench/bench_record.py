@@ -1,8 +1,8 @@
 """Recording throughput: episodes of the scripted expert per minute, 1 and N workers.
 
 ``python -m gym_soarm.bench --recording N [--recording-ray]`` reports it (see
-:mod:`gym_soarm.tools.bench`). Each recording is one call of
-:func:`gym_soarm.data.record.record` into a fresh temporary folder; its time is the
+:mod:`gym_soarm.bench.bench`). Each recording is one call of
+:func:`gym_soarm.record.record.record` into a fresh temporary folder; its time is the
 whole call, start-up of the worker processes or of the local Ray cluster included, so
 a handful of episodes shows what a short recording costs and a longer one (more
 ``episodes``) the steady rate. The dataset written is read back to count its episodes
@@ -41,7 +41,7 @@ def record_once(
 ) -> dict[str, Any]:
     """Record ``episodes`` episodes into a temporary folder; its time and what it wrote."""
     from gym_soarm.data.format import load_info
-    from gym_soarm.data.record import record
+    from gym_soarm.record.record import record
 
     with tempfile.TemporaryDirectory(prefix="gym_soarm_bench_record_") as folder:
         root = Path(folder) / "dataset"

@@ -2,8 +2,8 @@
 
 :class:`JointUnits` (an affine map per joint, wrist_roll wrapped when offset), the fixed
 maps of LeRobot's default calibration (:func:`default_units`) and the figures they are
-built from. :mod:`gym_soarm.units` documents the conventions and chooses the map of a
-setting; :mod:`gym_soarm.calibration` builds one arm's map on top of this module, which
+built from. :mod:`gym_soarm.real.units` documents the conventions and chooses the map of a
+setting; :mod:`gym_soarm.real.calibration` builds one arm's map on top of this module, which
 imports neither.
 """
 
@@ -54,12 +54,12 @@ class JointUnits:
 
     Each joint is affine, ``value = scale * radians + offset``, except ``wrist_roll``
     when ``wrist_roll_offset_rad`` is not zero: it is then shifted and wrapped, see
-    :mod:`gym_soarm.units`.
+    :mod:`gym_soarm.real.units`.
 
     Attributes:
         name: one of :data:`UNITS`.
         scale: per-joint factor, shape (6,), all positive (but a calibrated arm's
-            joint with drive_mode 1 in degrees, see :mod:`gym_soarm.calibration`).
+            joint with drive_mode 1 in degrees, see :mod:`gym_soarm.real.calibration`).
         offset: per-joint offset, shape (6,).
         wrist_roll_offset_rad: the real arm's wrist_roll reading, in radians, when the
             model's wrist_roll is at 0 rad.

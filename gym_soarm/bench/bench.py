@@ -20,7 +20,7 @@ ceiling alternate, so both see the same machine load; the ratio to the ceiling (
 median of the per-repeat ratios) shows how much the environment costs on top of what
 MuJoCo itself needs.
 
-``--control-mode`` measures another control mode (:mod:`gym_soarm.control`) with its
+``--control-mode`` measures another control mode (:mod:`gym_soarm.envs.control`) with its
 own random actions, uniform in its action space; the floors of ``TARGETS`` are those of
 the default ``joint_pos`` and are checked only there.
 
@@ -29,7 +29,7 @@ by ``gymnasium.vector.AsyncVectorEnv``. The cold ``make`` time (an empty model c
 rebuild the meshes and compile) is measured once per visual variant.
 
 ``--vector-scaling 1,2,4,8,16`` adds the scaling of vector environments
-(:mod:`gym_soarm.tools.bench_vector`): aggregate steps/s of the batched vector env (one
+(:mod:`gym_soarm.bench.bench_vector`): aggregate steps/s of the batched vector env (one
 ``mujoco.batch``), the native vector env (worker processes), ``AsyncVectorEnv`` and ``SyncVectorEnv`` at each ``num_envs``, and the speedup
 of each over one environment measured in the same rounds, beside the ceiling of free-running
 processes; state observations, and the camera configs of ``--vector-obs`` at
@@ -37,7 +37,7 @@ processes; state observations, and the camera configs of ``--vector-obs`` at
 least 1.7 with state observations, 1.8 with cameras; the batched env's at 64 environments,
 or the most measured, at least 1.8 with state observations) join the checked targets.
 
-``--recording N`` adds recording throughput (:mod:`gym_soarm.tools.bench_record`):
+``--recording N`` adds recording throughput (:mod:`gym_soarm.bench.bench_record`):
 episodes per minute of ``LiftCube-v0``'s scripted expert recorded by one process and by
 ``N`` worker processes (and as Ray tasks on a local cluster with ``--recording-ray``),
 without cameras and with the ``--recording-cameras`` at ``--image-size``. Each recording
@@ -64,8 +64,8 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from gym_soarm.bench.timings import spread
 from gym_soarm.tasks import DEFAULT_TASK
-from gym_soarm.tools.timings import spread
 
 DEFAULT_CONFIGS: tuple[str, ...] = (
     "state",
@@ -145,14 +145,14 @@ class BenchConfig:
                 f"env keywords {reserved} are set by the configuration name, --task or "
                 "--control-mode; leave them out of env."
             )
-        from gym_soarm.settings import EnvSettings
+        from gym_soarm.envs.settings import EnvSettings
 
         EnvSettings.from_kwargs(task=config.task, **config.env_kwargs(), **env)  # checks
         return dataclasses.replace(config, env=tuple(sorted(dict(env).items())))
 
     @classmethod
     def _parse(cls, name: str, task: str, control_mode: str) -> BenchConfig:
-        from gym_soarm.control import CONTROL_MODES
+        from gym_soarm.envs.control import CONTROL_MODES
         from gym_soarm.tasks import get_task
         from gym_soarm.validation import check_choice
 
@@ -648,11 +648,11 @@ def measure_vector_scaling(
 ) -> dict[str, Any]:
     """Scaling of the vector envs with ``obs`` observations, in a fresh process.
 
-    Returns :func:`gym_soarm.tools.bench_vector.measure`'s report, or ``{"obs": obs,
+    Returns :func:`gym_soarm.bench.bench_vector.measure`'s report, or ``{"obs": obs,
     "error": ...}`` when the process failed.
     """
+    from gym_soarm.bench.bench_vector import VECTOR_MODES
     from gym_soarm.tasks import get_task
-    from gym_soarm.tools.bench_vector import VECTOR_MODES
 
     modes = list(modes or VECTOR_MODES)
     if progress is not None:

@@ -1,4 +1,4 @@
-"""``python -m gym_soarm.tools.bench_vector``: the scaling of vector environments alone.
+"""``python -m gym_soarm.bench.bench_vector``: the scaling of vector environments alone.
 
 The program is :func:`gym_soarm.cli.bench_vector.main`; this file only gives it its ``-m``
 name.

@@ -11,7 +11,7 @@
   code over the batch (:mod:`gym_soarm.tasks.base`), so no per-environment Python runs
   on a step. The joint control modes are converted for the whole batch too; the
   end-effector modes, a servo delay and the STS3215 servo model run per environment.
-* Each environment is still a :class:`~gym_soarm.env.SoArmEnv`, which resets (placement,
+* Each environment is still a :class:`~gym_soarm.envs.env.SoArmEnv`, which resets (placement,
   variation, reset options, snapshots), renders and answers ``call``/``get_attr``; its
   simulation is copied into the batch at its reset and after a ``call`` or ``set_attr``,
   and back from it when it is asked for (an object that ``get_attr`` hands out and that
@@ -40,24 +40,24 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from gym_soarm import constants
-from gym_soarm.control import JOINT_DELTA, JOINT_POS, NormalizedControl
-from gym_soarm.env import SoArmEnv
-from gym_soarm.processes import cpu_count
-from gym_soarm.settings import STATE_OBS_TYPES
+from gym_soarm.envs.control import JOINT_DELTA, JOINT_POS, NormalizedControl
+from gym_soarm.envs.env import SoArmEnv
+from gym_soarm.envs.settings import STATE_OBS_TYPES
 from gym_soarm.sim.arrays import ARRAY_FIELDS, SimArrays
 from gym_soarm.validation import check_int
-from gym_soarm.vector import (
+from gym_soarm.vector.common import (
     TIME_LIMIT_ATTRIBUTE,
-    _get,
-    _leaves,
-    _nest,
-    _parse_autoreset_mode,
     batched_obs,
     check_actions,
+    leaf_value,
+    nest,
+    observation_leaves,
+    parse_autoreset_mode,
     parse_seeds,
     pop_reset_mask,
     values_per_env,
 )
+from gym_soarm.vector.workers import cpu_count
 
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 _STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
@@ -92,7 +92,7 @@ def _column(values: Any, n: int) -> np.ndarray:
 
 
 class BatchedVectorEnv(VectorEnv):
-    """``num_envs`` :class:`~gym_soarm.env.SoArmEnv` simulations stepped as one batch.
+    """``num_envs`` :class:`~gym_soarm.envs.env.SoArmEnv` simulations stepped as one batch.
 
     Made by ``gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point")``
     for state observations; every keyword ``gym.make`` takes is passed to each
@@ -108,7 +108,7 @@ class BatchedVectorEnv(VectorEnv):
             process may use, at most ``num_envs``).
         copy: return fresh observation arrays on every call (default). With False the
             same arrays are filled again by the next call.
-        **env_kwargs: the arguments of :class:`~gym_soarm.env.SoArmEnv`.
+        **env_kwargs: the arguments of :class:`~gym_soarm.envs.env.SoArmEnv`.
 
     Raises:
         ValueError: a bad ``num_envs``, ``num_threads``, ``autoreset_mode`` or
@@ -131,7 +131,7 @@ class BatchedVectorEnv(VectorEnv):
         num_threads = min(check_int("num_threads", num_threads, 1), num_envs)
         if max_episode_steps is not None:
             max_episode_steps = check_int("max_episode_steps", max_episode_steps, 1)
-        self.autoreset_mode = _parse_autoreset_mode(autoreset_mode)
+        self.autoreset_mode = parse_autoreset_mode(autoreset_mode)
         self.num_envs = num_envs
         self.num_threads = num_threads
         self.copy = bool(copy)
@@ -146,7 +146,7 @@ class BatchedVectorEnv(VectorEnv):
                 env.close()
             raise
         self.settings = first.settings
-        """Every environment's settings (:class:`gym_soarm.settings.EnvSettings`)."""
+        """Every environment's settings (:class:`gym_soarm.envs.settings.EnvSettings`)."""
         self.metadata = dict(SoArmEnv.metadata)
         self.metadata["autoreset_mode"] = self.autoreset_mode
         self.render_mode = first.render_mode
@@ -154,7 +154,7 @@ class BatchedVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, num_envs)
         self.single_observation_space = first.observation_space
         self.observation_space = batch_space(self.single_observation_space, num_envs)
-        self._leaves = _leaves(self.single_observation_space)
+        self._leaves = observation_leaves(self.single_observation_space)
         self._obs = [np.zeros((num_envs, *shape), dtype) for _, shape, dtype in self._leaves]
 
         self._task = first.task_logic  # scores the batch; per-env values live in _episode
@@ -279,7 +279,7 @@ class BatchedVectorEnv(VectorEnv):
 
     def _write_obs(self, i: int, obs: Any) -> None:
         for (path, _, _), array in zip(self._leaves, self._obs, strict=True):
-            array[i] = _get(obs, path)
+            array[i] = leaf_value(obs, path)
 
     def _batched_obs(self) -> Any:
         return batched_obs(self._leaves, self._obs, self.copy)
@@ -361,7 +361,7 @@ class BatchedVectorEnv(VectorEnv):
 
     def _step_physics(self, ids: np.ndarray) -> tuple[np.ndarray, dict[int, str]]:
         """Step the simulations ``ids`` in one call; which diverged, and why (as
-        :meth:`SoArmEnv.step <gym_soarm.env.SoArmEnv.step>` finds it)."""
+        :meth:`SoArmEnv.step <gym_soarm.envs.env.SoArmEnv.step>` finds it)."""
         n = self.num_envs
         if len(ids) == 0:
             return np.zeros(n, dtype=np.bool_), {}
@@ -446,7 +446,7 @@ class BatchedVectorEnv(VectorEnv):
             env = self._unload(i)
             obs = env._observation()
             for (path, _, _), array in zip(self._leaves, rows, strict=True):
-                array[i] = _get(obs, path)
+                array[i] = leaf_value(obs, path)
         return rows
 
     def _infos(
@@ -527,7 +527,7 @@ class BatchedVectorEnv(VectorEnv):
         """``SAME_STEP``: keep the ended episodes' last observations and infos, reset them."""
         finals = {}
         for i in ended.tolist():
-            final_obs = _nest(
+            final_obs = nest(
                 {path: a[i].copy() for (path, _, _), a in zip(self._leaves, self._obs, strict=True)}
             )
             finals[i] = (
@@ -685,7 +685,7 @@ def make_vector_env(num_envs: int, vector_env: str = "auto", **kwargs: Any) -> V
         ValueError: an unknown ``vector_env``, or process arguments for the batched env.
     """
     from gym_soarm.validation import check_choice
-    from gym_soarm.vector import SoArmVectorEnv
+    from gym_soarm.vector.processes import SoArmVectorEnv
 
     check_choice("vector_env", vector_env, VECTOR_ENVS)
     process_args = [k for k in _PROCESS_KEYWORDS if kwargs.get(k) is not None]

@@ -6,7 +6,7 @@ local one. Every cluster node needs gym_soarm installed (``pip install
 "gym-soarm[ray]"``). A task plays one attempt in a Ray worker process (which keeps its
 environment and expert for the next tasks of the same recording) and returns the
 episode's shard as bytes, so the nodes need no shared file system; this process merges
-the shards exactly as :mod:`gym_soarm.data.parallel` does, so the dataset is the same
+the shards exactly as :mod:`gym_soarm.record.parallel` does, so the dataset is the same
 as with one process. Ray runs a task again when its worker dies.
 """
 
@@ -22,10 +22,10 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from gym_soarm.data.attempt import FPS, AttemptPlan, record_attempt
 from gym_soarm.data.format import SCRATCH_DIR
-from gym_soarm.data.parallel import OrderedMerger
 from gym_soarm.data.writer import LeRobotDatasetWriter
+from gym_soarm.record.attempt import FPS, AttemptPlan, record_attempt
+from gym_soarm.record.parallel import OrderedMerger
 
 # Times Ray runs a task again when its worker process dies.
 TASK_RETRIES = 3
@@ -145,7 +145,7 @@ def record_with_ray(
         bar: a tqdm progress bar to update, or None.
 
     Returns:
-        (attempts, successes, interrupted), as :func:`~gym_soarm.data.parallel.record_in_workers`.
+        (attempts, successes, interrupted), as :func:`~gym_soarm.record.parallel.record_in_workers`.
 
     Raises:
         ImportError: Ray is not installed.

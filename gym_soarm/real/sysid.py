@@ -1,11 +1,11 @@
 """Fitting the simulation's servos and joints to a real arm's LeRobot dataset.
 
 :func:`fit_dynamics` replays a LeRobot SO-101 dataset's ``action`` in the simulation, as
-:func:`gym_soarm.data.replay.replay` does (same dataset reading, units, calibration,
+:func:`gym_soarm.real.replay.replay` does (same dataset reading, units, calibration,
 scenes and 50 Hz resampling), and fits per joint the servo's ``kp`` and ``kv`` and the
 joint's ``damping``, ``armature`` and ``frictionloss``, and one control delay in steps,
 so that the simulated joints follow the recorded ``observation.state``. The result is a
-:mod:`gym_soarm.dynamics` file that every program takes (``dynamics=PATH``).
+:mod:`gym_soarm.real.dynamics` file that every program takes (``dynamics=PATH``).
 
 **How.** With MuJoCo's own system-identification toolbox, :mod:`mujoco.sysid` (the
 ``mujoco[sysid]`` extra, ``pip install "gym-soarm[sysid]"``): each figure is a
@@ -53,7 +53,14 @@ import mujoco
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.data.replay import (
+from gym_soarm.real.dynamics import (
+    JOINT_FIELDS,
+    MAX_DELAY_STEPS,
+    Dynamics,
+    apply_dynamics,
+    read_model_dynamics,
+)
+from gym_soarm.real.replay import (
     SIM_FPS,
     episode_scenes,
     frame_of_steps,
@@ -62,16 +69,9 @@ from gym_soarm.data.replay import (
     scene_envs,
     start_episode,
 )
-from gym_soarm.dynamics import (
-    JOINT_FIELDS,
-    MAX_DELAY_STEPS,
-    Dynamics,
-    apply_dynamics,
-    read_model_dynamics,
-)
+from gym_soarm.real.units import UNITS
 from gym_soarm.sim.randomization import arm_indices
 from gym_soarm.tasks import get_task
-from gym_soarm.units import UNITS
 from gym_soarm.validation import check_choice, check_int
 
 DELAYS: tuple[int, ...] = (0, 1, 2, 3)
@@ -393,12 +393,12 @@ def fit_dynamics(
 
     Args:
         root: a LeRobotDataset v3.0 folder with ``action`` and ``observation.state``
-            named as the SO-101 follower's (see :mod:`gym_soarm.data.replay`).
+            named as the SO-101 follower's (see :mod:`gym_soarm.real.replay`).
         episodes: episode indices to fit to; None for all.
         units: the dataset's joint units; None as the replay detects them.
         calibration: the recording arm's LeRobot calibration file (LeRobot units).
         wrist_roll_offset_deg: the arm's wrist_roll reading when the model's is at 0 rad.
-        task: the scene (see :func:`gym_soarm.data.replay.replay`).
+        task: the scene (see :func:`gym_soarm.real.replay.replay`).
         seed: with ``task``, episode ``k`` resets the scene with ``seed + k``.
         delays: the control delays (steps) to try.
         iterations: at most this many iterations of the final fit.
@@ -410,7 +410,7 @@ def fit_dynamics(
             from the model's own.
 
     Returns:
-        The fitted figures (a :class:`gym_soarm.dynamics.Dynamics` with its ``fit``
+        The fitted figures (a :class:`gym_soarm.real.dynamics.Dynamics` with its ``fit``
         report) and the recorded and simulated joints before and after.
 
     Raises:

@@ -1,6 +1,6 @@
 """How gym_soarm starts worker processes: one multiprocessing context for all of them.
 
-The vector env (:mod:`gym_soarm.vector`) and the recorder (:mod:`gym_soarm.data.parallel`)
+The vector env (:mod:`gym_soarm.vector.processes`) and the recorder (:mod:`gym_soarm.record.parallel`)
 run their environments in worker processes. Both start them with ``forkserver`` where
 the platform has it, else ``spawn``: never ``fork``, because a forked child would share
 the parent's OpenGL contexts and threads. The fork server imports the modules it is

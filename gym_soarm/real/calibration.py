@@ -10,7 +10,7 @@ entry per motor::
 ``calibration=PATH`` (a ``gym.make`` keyword, the recorder's ``--calibration`` and the
 LeRobot config's ``calibration`` field) reads such a file and converts between the
 model's radians and *that* arm's LeRobot values exactly as LeRobot's Feetech motor bus
-normalises them, instead of the fixed maps of :mod:`gym_soarm.units`.
+normalises them, instead of the fixed maps of :mod:`gym_soarm.real.units`.
 
 **Ticks.** Each servo reads 0 to 4095 ticks. LeRobot's calibration asks the user to hold
 the arm with every joint in the middle of its travel and writes a homing offset that
@@ -33,7 +33,7 @@ and +1 otherwise. 4095 ticks a turn is the figure LeRobot's degree formula uses.
   happened to hold it, taken as the model's 0 rad. ``wrist_roll_offset_deg`` says
   otherwise: with an offset of ``d`` degrees the held pose is the model's wrist_roll at
   ``-d`` degrees, and wrist_roll angles are wrapped to a turn about it (as without a
-  calibration, see :mod:`gym_soarm.units`). The offset is thus one more calibration
+  calibration, see :mod:`gym_soarm.real.units`). The offset is thus one more calibration
   figure, the one the file cannot hold.
 
 ``homing_offset`` and ``id`` are read and checked but not used: the homing offset ties
@@ -64,7 +64,7 @@ So degrees are measured from the middle of each recorded range, and a range that
 not centred on 2047 moves that joint's zero, exactly as on the real arm: a
 ``shoulder_pan`` swept from 758 to 3292 (middle 2025) reads +1.93 degrees when the model
 is at 0 rad. A calibration whose ranges are centred on 2047 gives the conversions of
-:mod:`gym_soarm.units` (to float rounding): body degrees ``rad * 180 / pi`` whatever
+:mod:`gym_soarm.real.units` (to float rounding): body degrees ``rad * 180 / pi`` whatever
 the widths; the gripper's 0..100, and the body's -100..100 in ``"lerobot_range"``, when
 each recorded range also spans the model's (the gripper's 110 degrees are 1251.2
 ticks), since those values are fractions of the recorded range.
@@ -84,7 +84,7 @@ from pathlib import Path
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.unit_maps import (
+from gym_soarm.real.unit_maps import (
     LEROBOT,
     LEROBOT_RANGE,
     RADIANS,

@@ -7,11 +7,11 @@
   (default: one per CPU, at most ``num_envs``): this process steps one block itself
   and each worker process another, at the same time. One message wakes a worker per
   step; it steps its whole block and writes observations, rewards, terminations,
-  truncations and the numbers of its infos (:mod:`gym_soarm.infos`) straight into
+  truncations and the numbers of its infos (:mod:`gym_soarm.envs.infos`) straight into
   shared memory, so only the values of the infos that are not numbers travel through
   its pipe. The actions travel the other way through shared memory too.
 * ``num_processes=1`` keeps every environment in this process (no worker at all).
-* Workers start with ``forkserver`` (or ``spawn``, see :mod:`gym_soarm.processes`), so
+* Workers start with ``forkserver`` (or ``spawn``, see :mod:`gym_soarm.vector.workers`), so
   each owns its OpenGL contexts; a script that makes the vector env runs it under
   ``if __name__ == "__main__":``.
 * ``reset(seed=s)`` resets environment ``i`` with ``s + i``, as Gymnasium's vector
@@ -38,20 +38,27 @@ from multiprocessing.reduction import ForkingPickler
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from gym_soarm.env import SoArmEnv
-from gym_soarm.infos import INFO_NUMBERS, InfoReader, InfoWriter, merge
-from gym_soarm.processes import START_METHODS, cpu_count, end_process, worker_context
+from gym_soarm.envs.env import SoArmEnv
+from gym_soarm.envs.infos import INFO_NUMBERS, InfoReader, InfoWriter, merge
 from gym_soarm.validation import check_choice, check_int
+from gym_soarm.vector.common import (
+    TIME_LIMIT_ATTRIBUTE,
+    Leaf,
+    batched_obs,
+    check_actions,
+    leaf_value,
+    observation_leaves,
+    parse_autoreset_mode,
+    parse_seeds,
+    pop_reset_mask,
+    values_per_env,
+)
+from gym_soarm.vector.workers import START_METHODS, cpu_count, end_process, worker_context
 
-_Leaf = tuple[tuple[str, ...], tuple[int, ...], np.dtype]
 _Field = tuple[str, int, tuple[int, ...], str]  # name, byte offset, shape, dtype
-
-TIME_LIMIT_ATTRIBUTE = "_max_episode_steps"
-"""What Gymnasium's ``TimeLimit`` calls the step limit; the vector env answers it."""
 
 CLOSE_TIMEOUT_S = 10.0
 """How long ``close()`` waits for a worker to close its environments before ending it."""
@@ -63,158 +70,7 @@ class WorkerDiedError(RuntimeError):
     """A worker process of :class:`SoArmVectorEnv` ended while the caller waited on it."""
 
 
-def _parse_autoreset_mode(mode: AutoresetMode | str) -> AutoresetMode:
-    if isinstance(mode, AutoresetMode):
-        return mode
-    names = [m.value for m in AutoresetMode]
-    if isinstance(mode, str) and mode in names:
-        return AutoresetMode(mode)
-    raise ValueError(
-        f"autoreset_mode must be a gymnasium.vector.AutoresetMode or one of {names}; got {mode!r}."
-    )
-
-
-def parse_seeds(seed: Any, num_envs: int) -> list[int | None]:
-    """One seed per environment: None (fresh entropy), an int ``s`` (environment ``i``
-    gets ``s + i``) or a sequence of ``num_envs`` seeds (or Nones).
-
-    Raises:
-        ValueError: anything else, or a negative seed.
-    """
-    if seed is None:
-        return [None] * num_envs
-    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-        seeds: list[Any] = [int(seed) + i for i in range(num_envs)]
-    elif isinstance(seed, (Sequence, np.ndarray)) and not isinstance(seed, str):
-        seeds = list(seed)
-        if len(seeds) != num_envs:
-            raise ValueError(
-                f"seed must be None, an int or a list of num_envs={num_envs} seeds; "
-                f"got a list of length {len(seeds)}."
-            )
-    else:
-        raise ValueError(
-            f"seed must be None, an int >= 0 or a list of num_envs={num_envs} seeds; got {seed!r}."
-        )
-    return [None if s is None else check_int("seed", s, 0) for s in seeds]
-
-
-def values_per_env(values: Any, num_envs: int) -> list[Any]:
-    """``set_attr``'s values: one per environment, or one value for all.
-
-    Raises:
-        ValueError: a list or tuple of another length.
-    """
-    if not isinstance(values, (list, tuple)):
-        return [values] * num_envs
-    if len(values) != num_envs:
-        raise ValueError(
-            f"values must hold one value per environment (num_envs={num_envs}); got {len(values)}."
-        )
-    return list(values)
-
-
-def batched_obs(leaves: list[_Leaf], arrays: list[np.ndarray], copy: bool) -> Any:
-    """The observation of a vector env from its leaf arrays (fresh copies if ``copy``)."""
-    if copy:
-        arrays = [a.copy() for a in arrays]
-    return _nest({path: a for (path, _, _), a in zip(leaves, arrays, strict=True)})
-
-
-def pop_reset_mask(options: dict[str, Any] | None, num_envs: int) -> np.ndarray | None:
-    """``options["reset_mask"]``, taken out of ``options`` and checked (None if absent).
-
-    Raises:
-        ValueError: not a bool array of shape ``(num_envs,)`` with at least one True.
-    """
-    if options is None or "reset_mask" not in options:
-        return None
-    mask = np.asarray(options.pop("reset_mask"))
-    if mask.shape != (num_envs,) or mask.dtype != np.bool_ or not mask.any():
-        raise ValueError(
-            f"options['reset_mask'] must be a bool array of shape ({num_envs},) "
-            f"with at least one True; got {mask!r}."
-        )
-    return mask
-
-
-def check_actions(
-    actions: Any, shape: tuple[int, ...], mode: AutoresetMode, ended: np.ndarray
-) -> np.ndarray:
-    """A vector step's ``actions`` as an array, checked before anything steps.
-
-    Args:
-        actions: one row per environment.
-        shape: the batched action space's shape.
-        mode: the autoreset mode (rows of environments that reset instead may be anything).
-        ended: which environments ended their episodes on the previous step.
-
-    Raises:
-        ValueError: another shape, not real numbers, or NaN/inf in a row that steps.
-        RuntimeError: ``DISABLED`` and an ended episode not reset yet.
-    """
-    array = np.asarray(actions)
-    if array.shape != shape:
-        raise ValueError(
-            f"actions must have shape {shape} (one row of joint targets per "
-            f"environment); got shape {array.shape}."
-        )
-    if array.dtype.kind not in "iuf":
-        raise ValueError(
-            f"actions must be real numbers (ints or floats) of shape {shape}; got dtype "
-            f"{array.dtype}."
-        )
-    if mode is AutoresetMode.DISABLED and ended.any():
-        done = np.flatnonzero(ended).tolist()
-        raise RuntimeError(
-            f"environments {done} ended their episodes and autoreset_mode is DISABLED: "
-            "reset them first with reset(options={'reset_mask': mask})."
-        )
-    rows = ~ended if mode is AutoresetMode.NEXT_STEP else np.ones(len(ended), np.bool_)
-    finite = np.isfinite(array.reshape(len(ended), -1)).all(axis=1)
-    if not finite[rows].all():
-        bad = np.flatnonzero(rows & ~finite).tolist()
-        raise ValueError(
-            f"actions must be finite; the rows of environments {bad} hold NaN or inf. "
-            "Nothing was stepped; check the policy's output before stepping."
-        )
-    return array
-
-
-def _leaves(space: spaces.Space, path: tuple[str, ...] = ()) -> list[_Leaf]:
-    """The (key path, shape, dtype) of every array of an observation space, in order."""
-    if isinstance(space, spaces.Dict):
-        out: list[_Leaf] = []
-        for key, sub in space.spaces.items():
-            out.extend(_leaves(sub, (*path, key)))
-        return out
-    if isinstance(space, spaces.Box):
-        return [(path, space.shape, space.dtype)]
-    raise TypeError(
-        f"SoArmVectorEnv batches Dict and Box observation spaces; got {type(space).__name__}."
-    )
-
-
-def _nest(flat: dict[tuple[str, ...], Any]) -> Any:
-    """Rebuild the nested dicts of an observation from its leaves keyed by path."""
-    if list(flat) == [()]:
-        return flat[()]
-    root: dict[str, Any] = {}
-    for path, value in flat.items():
-        node = root
-        for key in path[:-1]:
-            node = node.setdefault(key, {})
-        node[path[-1]] = value
-    return root
-
-
-def _get(tree: Any, path: tuple[str, ...]) -> Any:
-    for key in path:
-        tree = tree[key]
-    return tree
-
-
-def _layout(num_envs: int, action_shape: tuple[int, ...], leaves: list[_Leaf]) -> list[_Field]:
+def _layout(num_envs: int, action_shape: tuple[int, ...], leaves: list[Leaf]) -> list[_Field]:
     """Where each shared array lies in the shared block: actions, results, observations."""
     fields: list[_Field] = []
     offset = 0
@@ -263,7 +119,7 @@ class _Block:
         envs: list[SoArmEnv],
         first: int,
         arrays: dict[str, np.ndarray],
-        leaves: list[_Leaf],
+        leaves: list[Leaf],
         max_episode_steps: int | None,
         autoreset_mode: AutoresetMode,
     ) -> None:
@@ -280,7 +136,7 @@ class _Block:
 
     def _write_obs(self, row: int, obs: Any) -> None:
         for path, array in zip(self.paths, self.obs, strict=True):
-            array[row] = _get(obs, path)
+            array[row] = leaf_value(obs, path)
 
     def reset(
         self, seeds: list[int | None], options: dict[str, Any] | None, mask: list[bool] | None
@@ -387,7 +243,7 @@ def _worker_main(
     conn: Connection,
     block: Any,
     fields: list[_Field],
-    leaves: list[_Leaf],
+    leaves: list[Leaf],
     first: int,
     count: int,
     spec: Any,
@@ -484,7 +340,7 @@ def _exit_text(exitcode: int | None) -> str:
 
 
 class SoArmVectorEnv(VectorEnv):
-    """``num_envs`` :class:`~gym_soarm.env.SoArmEnv` simulations stepped in worker processes.
+    """``num_envs`` :class:`~gym_soarm.envs.env.SoArmEnv` simulations stepped in worker processes.
 
     Made by ``gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point")``;
     every keyword that ``gym.make`` takes for the id is passed to each environment.
@@ -503,7 +359,7 @@ class SoArmVectorEnv(VectorEnv):
         start_method: ``"forkserver"`` (default where available) or ``"spawn"``.
         copy: return fresh observation arrays on every call (default). With False the
             same (shared) arrays are filled again by the next call.
-        **env_kwargs: the arguments of :class:`~gym_soarm.env.SoArmEnv` (``task``,
+        **env_kwargs: the arguments of :class:`~gym_soarm.envs.env.SoArmEnv` (``task``,
             ``obs_type``, ``observation_height`` ...).
 
     Raises:
@@ -532,7 +388,7 @@ class SoArmVectorEnv(VectorEnv):
             max_episode_steps = check_int("max_episode_steps", max_episode_steps, 1)
         if start_method is not None:
             check_choice("start_method", start_method, START_METHODS)
-        self.autoreset_mode = _parse_autoreset_mode(autoreset_mode)
+        self.autoreset_mode = parse_autoreset_mode(autoreset_mode)
         self.num_envs = num_envs
         self.copy = bool(copy)
         self.max_episode_steps = max_episode_steps
@@ -540,7 +396,7 @@ class SoArmVectorEnv(VectorEnv):
         # The first environment checks every argument here and gives the spaces.
         first = SoArmEnv(**env_kwargs)
         self.settings = first.settings
-        """Every environment's settings (:class:`gym_soarm.settings.EnvSettings`)."""
+        """Every environment's settings (:class:`gym_soarm.envs.settings.EnvSettings`)."""
         self.metadata = dict(SoArmEnv.metadata)
         self.metadata["autoreset_mode"] = self.autoreset_mode
         self.render_mode = first.render_mode
@@ -548,7 +404,7 @@ class SoArmVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.single_observation_space = first.observation_space
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self._leaves = _leaves(self.single_observation_space)
+        self._leaves = observation_leaves(self.single_observation_space)
         fields = _layout(num_envs, self.single_action_space.shape, self._leaves)
 
         # Block sizes differ by one at most; this process takes a smallest one, as it

@@ -1,12 +1,12 @@
 """Scaling of vector environments: aggregate steps/s for several ``num_envs``.
 
 ``python -m gym_soarm.bench --vector-scaling 1,2,4,8,16`` reports it (this module
-measures it; ``python -m gym_soarm.tools.bench_vector`` runs it alone). For each
+measures it; ``python -m gym_soarm.bench.bench_vector`` runs it alone). For each
 ``num_envs`` the same environment is built as one ``gym.make`` environment (the
 baseline) and as each vector env:
 
 * ``batched``: ``gym.make_vec(..., vectorization_mode="vector_entry_point",
-  vector_env="batched")``, :class:`gym_soarm.batched.BatchedVectorEnv`: every simulation
+  vector_env="batched")``, :class:`gym_soarm.vector.batched.BatchedVectorEnv`: every simulation
   in one ``mujoco.batch`` call (a thread per CPU), the task scored as arrays;
 * ``native``: the same with ``vector_env="processes"``, the worker processes of
   :class:`gym_soarm.vector.SoArmVectorEnv` (one per CPU);
@@ -50,8 +50,8 @@ import gymnasium as gym
 import numpy as np
 
 import gym_soarm  # noqa: F401  (registers the environments)
-from gym_soarm.processes import cpu_count, end_process, worker_context
-from gym_soarm.tools.timings import spread
+from gym_soarm.bench.timings import spread
+from gym_soarm.vector.workers import cpu_count, end_process, worker_context
 
 DEFAULT_ENV_ID = "gym_soarm/LiftCube-v0"
 VECTOR_MODES: tuple[str, ...] = ("batched", "native", "async", "sync")

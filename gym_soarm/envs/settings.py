@@ -1,6 +1,6 @@
 """One frozen settings object for every ``gym.make`` keyword of gym_soarm.
 
-:class:`EnvSettings` holds the keywords of :class:`gym_soarm.env.SoArmEnv` as fields, each
+:class:`EnvSettings` holds the keywords of :class:`gym_soarm.envs.env.SoArmEnv` as fields, each
 with its type, default, a one-line doc and its check; an instance checks (and normalises)
 all of them once, when it is made. ``SoArmEnv`` builds one from its keywords
 (``env.unwrapped.settings``) and also takes one whole (``gym.make(id, settings=s)``); the
@@ -8,7 +8,7 @@ programs generate their command-line flags from the fields
 (:func:`gym_soarm.cli.settings.add_settings_arguments`) and recordings store them
 (:meth:`EnvSettings.to_json`). A new keyword is one field here and its use in ``env.py``.
 
->>> from gym_soarm.settings import EnvSettings
+>>> from gym_soarm.envs.settings import EnvSettings
 >>> s = EnvSettings(task="lift", obs_type="state", servo_model="sts3215")
 >>> s.task, s.camera_config
 ('LiftCube-v0', ('front_camera', 'wrist_camera'))
@@ -29,12 +29,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from gym_soarm import constants
-from gym_soarm.control import CONTROL_MODES
+from gym_soarm.envs.control import CONTROL_MODES
+from gym_soarm.real.unit_maps import LEROBOT, UNITS, check_wrist_roll_offset
 from gym_soarm.render.backend import RENDER_QUALITIES
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
 from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.distractors import MAX_DISTRACTORS
-from gym_soarm.unit_maps import LEROBOT, UNITS, check_wrist_roll_offset
 from gym_soarm.validation import (
     ArgumentTypeError,
     check_bool,
@@ -59,7 +59,7 @@ SETTINGS_FORMAT = "gym_soarm.env_settings/1"
 _PATHS = {
     "calibration": ("a LeRobot calibration JSON file", "Pass e.g. calibration='follower.json'."),
     "dynamics": (
-        "a gym_soarm.dynamics/1 JSON file",
+        "a gym_soarm.real.dynamics/1 JSON file",
         "Fit one with python -m gym_soarm.sysid.",
     ),
 }
@@ -136,7 +136,7 @@ def _check_task(name: str, value: Any) -> str:
 class EnvSettings:
     """Every keyword of ``gym.make`` for a gym_soarm environment, checked once.
 
-    Fields keep the keywords' names, types and defaults (see :class:`gym_soarm.env.SoArmEnv`
+    Fields keep the keywords' names, types and defaults (see :class:`gym_soarm.envs.env.SoArmEnv`
     for what each does); making an instance checks every field and normalises a few:
     ``task`` becomes the registered name (``"lift"`` -> ``"LiftCube-v0"``),
     ``camera_config`` the tuple of camera names, ``image_modalities`` a tuple in the
@@ -255,7 +255,7 @@ class EnvSettings:
     )
     dynamics: str | os.PathLike[str] | None = _setting(  # noqa: RUF009
         None,
-        "a gym_soarm.dynamics/1 JSON (python -m gym_soarm.sysid): servo and joint figures",
+        "a gym_soarm.real.dynamics/1 JSON (python -m gym_soarm.sysid): servo and joint figures",
         _check_path,
         type_text="str | None",
         metavar="PATH",

@@ -9,7 +9,7 @@ front and wrist cameras at 480 x 640, in LeRobot's follower units::
 Each frame holds the observation before a step and the action sent at that step:
 ``observation.state`` (the six joints in the chosen units, named ``shoulder_pan.pos`` ...
 ``gripper.pos``), ``action`` (the expert's action in the chosen control mode: by default
-its six joint targets, same units; see :mod:`gym_soarm.control`), one
+its six joint targets, same units; see :mod:`gym_soarm.envs.control`), one
 ``observation.images.<camera>`` video per camera (or ``observation.environment_state``
 when recording without cameras), and ``next.reward``, ``next.success``, ``next.done`` of
 the step. Each episode's task sentence is the environment's ``task_description`` after its reset
@@ -23,7 +23,7 @@ imperfect policy reaches, and show how the expert recovers from them.
 The expert computes its joint targets in radians from the simulation state; the
 environment's control mode turns them into its action
 (``env.unwrapped.control.action_for_targets``): joint targets in the recording's units
-(:mod:`gym_soarm.units`), their changes, or the jaws' pose or its change.
+(:mod:`gym_soarm.real.units`), their changes, or the jaws' pose or its change.
 """
 
 from __future__ import annotations
@@ -42,13 +42,13 @@ import gymnasium as gym
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.control import action_names
 from gym_soarm.data import LeRobotDatasetWriter
-from gym_soarm.data.attempt import FPS, AttemptPlan, record_attempt, write_variation
-from gym_soarm.settings import EnvSettings
+from gym_soarm.envs.control import action_names
+from gym_soarm.envs.settings import EnvSettings
+from gym_soarm.real.units import FEATURE_NAMES, joint_units
+from gym_soarm.record.attempt import FPS, AttemptPlan, record_attempt, write_variation
 from gym_soarm.tasks import get_task, lift_cube
 from gym_soarm.tasks.suites import distinct_tasks, resolve_selection, shared_state_names
-from gym_soarm.units import FEATURE_NAMES, joint_units
 from gym_soarm.validation import ArgumentTypeError, check_int, parse_size, resolve_camera_config
 
 CAMERA_CONFIG_NONE = "none"
@@ -138,7 +138,7 @@ def dataset_features(
             (the env's ``state_names``), or None to record no environment state.
         control_mode: names the ``action`` values (``shoulder_pan.pos`` ... for
             ``joint_pos``, ``ee.x`` ... for ``ee_pose``; see
-            :func:`gym_soarm.control.action_names`).
+            :func:`gym_soarm.envs.control.action_names`).
     """
     names = list(FEATURE_NAMES)
     actions = list(action_names(control_mode))
@@ -166,10 +166,10 @@ def dataset_features(
 
 def write_recording_settings(root: str | os.PathLike[str], settings: EnvSettings) -> None:
     """Write ``meta/gym_soarm.json``: the environment settings the dataset was recorded
-    with (``"env"``, :meth:`~gym_soarm.settings.EnvSettings.to_dict`, file paths made
+    with (``"env"``, :meth:`~gym_soarm.envs.settings.EnvSettings.to_dict`, file paths made
     absolute) and, as before, how to read its joint values back (units, wrist offset,
-    calibration, control mode, dynamics). :func:`gym_soarm.data.replay.replay` and
-    :func:`gym_soarm.data.sysid.fit_dynamics` read it."""
+    calibration, control mode, dynamics). :func:`gym_soarm.real.replay.replay` and
+    :func:`gym_soarm.real.sysid.fit_dynamics` read it."""
     paths = {
         name: os.path.abspath(value)
         for name in ("calibration", "dynamics")
@@ -233,7 +233,7 @@ def _recording_settings(settings: EnvSettings | None, task: str, **keywords: Any
         return EnvSettings.from_kwargs(task=task, **kwargs)
     if not isinstance(settings, EnvSettings):
         raise ArgumentTypeError(
-            f"settings must be a gym_soarm.settings.EnvSettings or None; got "
+            f"settings must be a gym_soarm.envs.settings.EnvSettings or None; got "
             f"{type(settings).__name__}. Build one with EnvSettings(...)."
         )
     unfit = {k: v for k, v in settings.changed().items() if k in _NOT_RECORDED}
@@ -298,9 +298,9 @@ def record(
         camera_config: ``"front_only"``, ``"front_wrist"``, ``"all"``, camera names, or
             ``"none"`` (no video; ``observation.environment_state`` is recorded instead).
         size: image (height, width), both even.
-        units: joint units of states and actions, one of :data:`gym_soarm.units.UNITS`.
+        units: joint units of states and actions, one of :data:`gym_soarm.real.units.UNITS`.
         wrist_roll_offset_deg: with LeRobot units, the real arm's wrist_roll reading
-            (degrees) when the model's wrist_roll is at 0 rad (see :mod:`gym_soarm.units`).
+            (degrees) when the model's wrist_roll is at 0 rad (see :mod:`gym_soarm.real.units`).
         keep: ``"success"`` keeps only successful episodes (failed attempts are dropped
             and another attempt is made); ``"all"`` keeps every attempt.
         dart_noise: standard deviation (rad) of the Gaussian noise added to the executed
@@ -312,7 +312,7 @@ def record(
         workers: record the attempts in this many processes: this one and
             ``workers - 1`` worker processes (each sends its episodes as shards; this
             process plays attempts itself while no worker is free and merges everything
-            in attempt order; see :mod:`gym_soarm.data.parallel`). The dataset is the
+            in attempt order; see :mod:`gym_soarm.record.parallel`). The dataset is the
             same, frame for frame, for every worker count; a worker that dies
             mid-episode costs a retry of that attempt.
         start_method: how workers start: ``"forkserver"`` (default where available) or
@@ -328,14 +328,14 @@ def record(
             is written to ``meta/variation.jsonl``, one line per kept episode (with
             its task and reset seed, also when nothing varies).
         control_mode: the environment's control mode (one of
-            :data:`gym_soarm.control.CONTROL_MODES`): what the recorded ``action`` holds.
+            :data:`gym_soarm.envs.control.CONTROL_MODES`): what the recorded ``action`` holds.
         calibration: with LeRobot units, a real SO-101 follower's LeRobot calibration
             JSON: states and actions are then that arm's values (see
-            :mod:`gym_soarm.calibration`).
-        dynamics: a ``gym_soarm.dynamics/1`` file (servo gains, joint figures, control
-            delay; see :mod:`gym_soarm.dynamics`) the simulated arm moves with.
+            :mod:`gym_soarm.real.calibration`).
+        dynamics: a ``gym_soarm.real.dynamics/1`` file (servo gains, joint figures, control
+            delay; see :mod:`gym_soarm.real.dynamics`) the simulated arm moves with.
         settings: every environment keyword at once (a
-            :class:`gym_soarm.settings.EnvSettings`), instead of ``units``,
+            :class:`gym_soarm.envs.settings.EnvSettings`), instead of ``units``,
             ``wrist_roll_offset_deg``, ``calibration``, ``control_mode``, ``dynamics``
             and ``variation`` (leave those at their defaults then); its ``task``,
             ``obs_type``, ``camera_config`` and image size are the recorder's own
@@ -438,7 +438,7 @@ def record(
     session = contextlib.ExitStack()
     try:
         if ray_address is not None and len(plans) > 1:  # one Ray connection for all tasks
-            from gym_soarm.data.ray_tasks import ray_session
+            from gym_soarm.record.ray_tasks import ray_session
 
             session.enter_context(ray_session(ray_address))
         if progress:
@@ -491,7 +491,7 @@ def _record_task(
 ) -> tuple[int, int, bool]:
     """Record one task's episodes into ``writer``: (attempts, successes, interrupted)."""
     if ray_address is not None:
-        from gym_soarm.data.ray_tasks import record_with_ray
+        from gym_soarm.record.ray_tasks import record_with_ray
 
         return record_with_ray(
             writer,
@@ -503,7 +503,7 @@ def _record_task(
             bar=bar,
         )
     if workers > 1:
-        from gym_soarm.data.parallel import record_in_workers
+        from gym_soarm.record.parallel import record_in_workers
 
         return record_in_workers(writer, plan, episodes, max_attempts, workers, start_method, bar)
 

@@ -34,10 +34,10 @@ from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any
 
-from gym_soarm.data.attempt import FPS, AttemptPlan, record_attempt, write_variation
 from gym_soarm.data.format import SCRATCH_DIR
 from gym_soarm.data.writer import LeRobotDatasetWriter
-from gym_soarm.processes import end_process, worker_context
+from gym_soarm.record.attempt import FPS, AttemptPlan, record_attempt, write_variation
+from gym_soarm.vector.workers import end_process, worker_context
 
 # How many times one attempt may take its worker down before the recording gives up.
 MAX_DEATHS_PER_ATTEMPT = 3

@@ -1,0 +1,29 @@
+"""Vector environments: N simulations behind one Gymnasium ``VectorEnv``.
+
+``gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point",
+vector_env=...)`` picks one (:func:`~gym_soarm.vector.batched.make_vector_env`):
+
+* ``"batched"`` (:class:`~gym_soarm.vector.batched.BatchedVectorEnv`): every simulation
+  in one ``mujoco.batch``, stepped by the step core (:mod:`gym_soarm.envs.core`) over
+  the whole batch at once; for state observations.
+* ``"processes"`` (:class:`~gym_soarm.vector.processes.SoArmVectorEnv`): blocks of
+  single environments in worker processes; for pixels.
+
+:mod:`~gym_soarm.vector.common` holds what both share (seeds, reset masks, action
+checks, observation leaves) and :mod:`~gym_soarm.vector.workers` the worker processes.
+"""
+
+from __future__ import annotations
+
+from gym_soarm.vector.batched import VECTOR_ENVS, BatchedVectorEnv, make_vector_env
+from gym_soarm.vector.common import parse_seeds
+from gym_soarm.vector.processes import SoArmVectorEnv, WorkerDiedError
+
+__all__ = [
+    "VECTOR_ENVS",
+    "BatchedVectorEnv",
+    "SoArmVectorEnv",
+    "WorkerDiedError",
+    "make_vector_env",
+    "parse_seeds",
+]
