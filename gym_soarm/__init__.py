@@ -4,10 +4,11 @@ Importing the package registers an environment id per task of the registry
 (:mod:`gym_soarm.tasks`), ``gym_soarm/<Task>-v0``, plus the original ``SoArm-v0``
 (pick and place; also ``gym_soarm/SoArm-v0``). :data:`ENV_IDS` lists them all.
 
-Layout: ``sim/`` (scene building, physics, kinematics), ``tasks/`` (one module per task
-with its expert), ``render/`` (offscreen cameras, window, video files), ``data/``
-(LeRobot dataset writer and recorder), ``tools/`` (benchmark), ``cli/`` (command lines),
-``lerobot/`` (LeRobot integration), :mod:`gym_soarm.validation` (argument checks).
+Layout (``docs/architecture.md``): ``sim/`` (scene, physics, arrays, backends),
+``tasks/`` and ``expert/`` (tasks with their experts), ``envs/`` (the step core and the
+environment), ``vector/`` (vector envs), ``real/`` (the real arm), ``record/`` and
+``data/`` (recording, the dataset format), ``rl/`` (learning), ``render/``, ``teleop/``,
+``lerobot/``, ``bench/`` and ``tools/``, ``cli/`` (the programs).
 """
 
 from __future__ import annotations

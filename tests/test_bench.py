@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 from conftest import colour_counts
 
+from gym_soarm.bench import bench
 from gym_soarm.cli import bench as bench_cli
 from gym_soarm.render.camera import CameraRenderer
 from gym_soarm.sim import scene as model
-from gym_soarm.tools import bench
 
 STAT_FIELDS = {"median", "min", "max", "repeats"}
 

@@ -12,8 +12,9 @@ from dataset_files import read_dataset
 
 from gym_soarm.bench.bench import BenchConfig
 from gym_soarm.cli.record import build_parser
-from gym_soarm.envs import control, units
+from gym_soarm.envs import control
 from gym_soarm.expert import evaluation_resets, make_expert, run_episode
+from gym_soarm.real import units
 from gym_soarm.record.record import record
 from gym_soarm.sim.kinematics import downward_rotation
 

@@ -126,7 +126,7 @@ def test_heavy_randomization_restores_the_drawn_model_and_delay():
         model, mine = original.unwrapped.physics.model.ptr, other.unwrapped.physics.model.ptr
         for field in ("body_pos", "body_mass", "geom_friction", "actuator_gainprm", "mat_rgba"):
             assert np.array_equal(getattr(model, field), getattr(mine, field)), field
-        assert other.unwrapped._delay_steps == original.unwrapped._delay_steps
+        assert other.unwrapped.servo_chain.delay_steps == original.unwrapped.servo_chain.delay_steps
         actions = _actions(original.action_space, 0, 10)
         _assert_same(_play(other, actions), _play(original, actions))
     finally:
@@ -146,7 +146,7 @@ def test_other_control_mode_and_obs_type_may_restore():
         obs, info = target.reset(options={"state": snapshot})
         assert np.array_equal(obs["agent_pos"], source.unwrapped.physics.joint_angles())
         assert "ik_error_m" not in info
-        assert target.unwrapped._step_count == 5
+        assert target.unwrapped.step_count == 5
     finally:
         source.close()
         target.close()

@@ -142,7 +142,7 @@ def test_physics_randomisation_draws_around_the_fitted_figures(tmp_path):
                 2.0 * physics["damping_scale"]["elbow_flex"], rel=1e-5
             )
             # The fitted delay plus the drawn one.
-            assert env.unwrapped._delay_steps == 1 + physics["control_delay_steps"]
+            assert env.unwrapped.servo_chain.delay_steps == 1 + physics["control_delay_steps"]
     finally:
         env.close()
 

@@ -689,7 +689,7 @@ def measure_recording(
     median episodes per minute is reported with the speedup over one process (the
     median of the per-repeat ratios).
     """
-    from gym_soarm.tools import bench_record
+    from gym_soarm.bench import bench_record
 
     variants = bench_record.variants(workers, ray)
     rows = []
@@ -923,7 +923,7 @@ def run(
         ValueError: a configuration name or the control mode is unknown, or
             seconds/repeats/processes or the scaling/recording options are out of range.
     """
-    from gym_soarm.tools import bench_record, bench_vector
+    from gym_soarm.bench import bench_record, bench_vector
 
     parsed = [BenchConfig.parse(name, task, control_mode, env) for name in configs]
     vector_modes = tuple(vector_modes or bench_vector.VECTOR_MODES)
@@ -1072,7 +1072,7 @@ def serve_worker(job_text: str) -> None:
     elif kind == "cold_make":
         out = _measure_cold_make(job["visual"], job["task"])
     elif kind == "vector_scaling":
-        from gym_soarm.tools import bench_vector
+        from gym_soarm.bench import bench_vector
 
         out = bench_vector.measure(
             job["env_id"],
@@ -1084,7 +1084,7 @@ def serve_worker(job_text: str) -> None:
             modes=job["modes"],
         )
     elif kind == "recording":
-        from gym_soarm.tools import bench_record
+        from gym_soarm.bench import bench_record
 
         out = bench_record.record_once(
             job["camera_config"],

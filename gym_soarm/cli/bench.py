@@ -15,10 +15,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from gym_soarm.bench import bench, bench_vector
 from gym_soarm.cli.options import add_settings_arguments, settings_given
 from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.tasks import DEFAULT_TASK
-from gym_soarm.tools import bench, bench_vector
 
 
 def _print_scale(report: dict[str, Any]) -> None:

@@ -11,7 +11,7 @@ import json
 import sys
 from collections.abc import Sequence
 
-from gym_soarm.tools import bench_vector
+from gym_soarm.bench import bench_vector
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -617,3 +617,62 @@ def action_names(mode: str) -> tuple[str, ...]:
         EE_DELTA: EE_DELTA_NAMES,
         EE_POSE: EE_POSE_NAMES,
     }[mode]
+
+
+class ServoChain:
+    """From an action to the servo targets a step sends, for one environment.
+
+    The control mode converts the action into targets (rad) from the targets it
+    commanded last (:attr:`commanded`); a control delay holds them back
+    :attr:`delay_steps` steps (the servos meanwhile keep receiving the earlier ones); the
+    STS3215 servo model, when there is one, limits their speed and quantises them.
+
+    Args:
+        control: the control mode.
+        servo: the servo model (None: ideal servos).
+        delay_steps: the control delay, in steps (a reset with physics randomisation
+            may draw another).
+    """
+
+    def __init__(self, control: ControlMode, servo: Any = None, delay_steps: int = 0) -> None:
+        self.control = control
+        self.servo = servo
+        self.delay_steps = int(delay_steps)
+        self.commanded = np.zeros(len(constants.JOINT_NAMES))
+        """The targets (rad) the last action commanded, or the reset's."""
+        self.pending: list[np.ndarray] = []
+        """The delayed targets, oldest first (``delay_steps`` of them)."""
+
+    @property
+    def passes_through(self) -> bool:
+        """No delay and ideal servos: the targets are the control mode's own, so a batch
+        of environments can convert its actions at once."""
+        return not self.delay_steps and self.servo is None
+
+    def reset(self, targets: np.ndarray) -> None:
+        """The servos hold ``targets`` (rad) until the first actions reach them."""
+        self.pending = [targets.copy() for _ in range(self.delay_steps)]
+        if self.servo is not None:
+            self.servo.reset(targets)
+        self.control.reset()
+        self.commanded = targets.copy()
+
+    def hold(self, targets: np.ndarray) -> None:
+        """Hold ``targets`` (rad) from now, as after a reset, keeping the control mode's state."""
+        self.pending = [targets.copy() for _ in self.pending]
+        self.commanded = targets.copy()
+        if self.servo is not None:
+            self.servo.reset(targets)
+
+    def targets(self, action: np.ndarray) -> np.ndarray:
+        """The servo targets (rad) of a validated ``action`` this step; updates
+        :attr:`commanded`."""
+        target = self.control.targets(action, self.commanded)
+        self.commanded = target.copy()
+        if self.delay_steps:
+            # The servos receive the action of ``delay_steps`` steps before.
+            self.pending.append(target)
+            target = self.pending.pop(0)
+        if self.servo is not None:
+            target = self.servo(target)
+        return target

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import math
 import os
 import reprlib
 import warnings
@@ -14,12 +13,12 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from dm_control.rl import control
 from gymnasium import spaces
 
 from gym_soarm import constants
 from gym_soarm.envs import snapshot as snapshots
-from gym_soarm.envs.control import ControlMode, make_control
+from gym_soarm.envs.control import ControlMode, ServoChain, make_control
+from gym_soarm.envs.core import StepCore
 from gym_soarm.envs.settings import IMAGE_MODALITIES as IMAGE_MODALITIES
 from gym_soarm.envs.settings import OBS_TYPES as OBS_TYPES
 from gym_soarm.envs.settings import PLACEMENTS as PLACEMENTS
@@ -30,12 +29,12 @@ from gym_soarm.real.dynamics import apply_dynamics, load_dynamics
 from gym_soarm.real.units import JointUnits, joint_units
 from gym_soarm.render.camera import CameraRenderer
 from gym_soarm.sim.arrays import SimArrays, item
+from gym_soarm.sim.backends import MjDataBackend
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.sim.randomization import STS3215, Randomizer, Sts3215Servo
 from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.base import Task, TaskSpec
 from gym_soarm.tasks.distractors import place_distractors, with_distractors
-from gym_soarm.tasks.state_observation import StateObservation
 from gym_soarm.validation import (
     ArgumentTypeError,
     check_choice,
@@ -312,8 +311,6 @@ class SoArmEnv(gym.Env):
                 "object_placement": self.object_placement,
                 "distractors": [],
             }
-        self._delay_steps = self._fitted_delay_steps
-        self._pending_targets: list[np.ndarray] = []
         self._viewer = None
         self._closed = False
         self._needs_reset = True
@@ -326,8 +323,14 @@ class SoArmEnv(gym.Env):
         self._control = make_control(
             s.control_mode, self._physics, self._units, normalize=s.normalize_actions
         )
-        self._state_observation = StateObservation(task_logic)
-        self._commanded = self._physics.joint_targets().copy()
+        self._chain = ServoChain(self._control, self._servo, self._fitted_delay_steps)
+        self._chain.commanded = self._physics.joint_targets().copy()
+        # The step, written once (gym_soarm.envs.core), over this environment's MjData.
+        physics = self._physics
+        hook = None
+        if type(task_logic).before_step is not Task.before_step:
+            hook = lambda targets: task_logic.before_step(targets, physics)  # noqa: E731
+        self._core = StepCore(task_logic, MjDataBackend(physics), None, hook)
         self.action_space = self._control.action_space
         self.observation_space = self._make_observation_space()
 
@@ -372,7 +375,7 @@ class SoArmEnv(gym.Env):
                 layout["agent_pos"] = agent_pos
             return spaces.Dict(layout)
         if self.obs_type == "state":
-            return self._state_observation.space
+            return self._core.state_observer.space
         env_state = spaces.Box(*self._task.state_bounds(), dtype=np.float64)
         return spaces.Dict(OrderedDict(agent_pos=agent_pos, environment_state=env_state))
 
@@ -403,7 +406,33 @@ class SoArmEnv(gym.Env):
     def commanded_targets(self) -> np.ndarray:
         """The six servo targets (rad) the last step set, or the reset's: the targets
         that ``joint_delta`` and ``ee_delta`` actions change (a copy)."""
-        return self._commanded.copy()
+        return self._chain.commanded.copy()
+
+    @property
+    def servo_chain(self) -> ServoChain:
+        """The control mode, delay and servo model between an action and the servos
+        (:class:`~gym_soarm.envs.control.ServoChain`)."""
+        return self._chain
+
+    @property
+    def step_count(self) -> int:
+        """The steps of this episode so far (the success reward counts from it)."""
+        return self._step_count
+
+    @step_count.setter
+    def step_count(self, value: int) -> None:
+        # A vector env that steps this environment's simulation in a batch keeps it.
+        self._step_count = int(value)
+
+    def end_episode(self, reason: str) -> None:
+        """Refuse further steps until ``reset()``, saying ``reason`` (a vector env whose
+        batch found this simulation diverged ends its episode as ``step`` would)."""
+        self._needs_reset = True
+        self._no_episode_reason = reason
+
+    def observation(self) -> Any:
+        """The observation of the current state (pixel observations render now)."""
+        return self._observation()
 
     def hold_servo_targets(self, targets: np.ndarray) -> None:
         """Make the servos hold ``targets`` (rad, six) from now until the first actions
@@ -411,10 +440,7 @@ class SoArmEnv(gym.Env):
         after ``reset``. Call it between ``reset`` and the first ``step``."""
         targets = np.asarray(targets, dtype=np.float64)
         self._physics.set_joint_targets(targets)
-        self._pending_targets = [targets.copy() for _ in self._pending_targets]
-        self._commanded = targets.copy()
-        if self._servo is not None:
-            self._servo.reset(targets)
+        self._chain.hold(targets)
 
     @property
     def task_logic(self) -> Task:
@@ -445,7 +471,7 @@ class SoArmEnv(gym.Env):
     def observation_names(self) -> tuple[str, ...]:
         """The name of every value of an ``obs_type="state"`` observation, in order
         (see :mod:`gym_soarm.tasks.state_observation`); the same for every obs type."""
-        return self._state_observation.names
+        return self._core.state_observer.names
 
     @property
     def segmentation_ids(self) -> dict[str, int]:
@@ -605,18 +631,16 @@ class SoArmEnv(gym.Env):
                 "Call reset() first."
             )
         m, d = self._physics.model.ptr, self._physics.data.ptr
-        servo = self._servo
+        chain = self._chain
         return Snapshot(
             version=snapshots.SNAPSHOT_VERSION,
             settings=self._simulation_settings(),
             physics=snapshots.physics_state(m, d),
             model=snapshots.model_fields(m),
-            commanded=self._commanded.copy(),
-            pending_targets=tuple(np.array(t, dtype=np.float64) for t in self._pending_targets),
-            delay_steps=int(self._delay_steps),
-            servo=None
-            if servo is None
-            else (tuple(map(float, servo._command)), tuple(map(float, servo._output))),
+            commanded=chain.commanded.copy(),
+            pending_targets=tuple(np.array(t, dtype=np.float64) for t in chain.pending),
+            delay_steps=int(chain.delay_steps),
+            servo=None if chain.servo is None else chain.servo.state,
             control_mode=self.control_mode,
             control=snapshots.control_state(self._control),
             task_state=snapshots.task_state(self._task),
@@ -631,17 +655,16 @@ class SoArmEnv(gym.Env):
         m, d = physics.model.ptr, physics.data.ptr
         snapshots.set_model_fields(m, snapshot.model)
         snapshots.set_physics_state(m, d, snapshot.physics)
-        self._delay_steps = snapshot.delay_steps
-        self._pending_targets = [np.array(t, dtype=np.float64) for t in snapshot.pending_targets]
-        if self._servo is not None and snapshot.servo is not None:
-            command, output = snapshot.servo
-            self._servo._command = [float(v) for v in command]
-            self._servo._output = [float(v) for v in output]
+        chain = self._chain
+        chain.delay_steps = snapshot.delay_steps
+        chain.pending = [np.array(t, dtype=np.float64) for t in snapshot.pending_targets]
+        if chain.servo is not None and snapshot.servo is not None:
+            chain.servo.state = snapshot.servo
         if snapshot.control_mode == self.control_mode:
             snapshots.set_control_state(self._control, snapshot.control)
         else:
             self._control.reset()
-        self._commanded = np.array(snapshot.commanded, dtype=np.float64)
+        chain.commanded = np.array(snapshot.commanded, dtype=np.float64)
         snapshots.set_task_state(self._task, snapshot.task_state)
         self._variation = copy.deepcopy(snapshot.variation)
         self._step_count = snapshot.step_count
@@ -674,13 +697,7 @@ class SoArmEnv(gym.Env):
                 # same way at every level; applied before the reset's forward pass.
                 self._randomize()
         # The servos hold the reset's targets until the first actions reach them.
-        self._pending_targets = [
-            self._physics.joint_targets().copy() for _ in range(self._delay_steps)
-        ]
-        if self._servo is not None:
-            self._servo.reset(self._physics.joint_targets())
-        self._control.reset()
-        self._commanded = self._physics.joint_targets().copy()
+        self._chain.reset(self._physics.joint_targets())
         self._needs_reset = False
         self._step_count = 0
         obs = self._observation()
@@ -696,7 +713,7 @@ class SoArmEnv(gym.Env):
         rng = self.np_random
         visual = self._randomizer.visual(self.visual_randomization, rng)
         physical, drawn_delay = self._randomizer.physics(self.physics_randomization, rng)
-        self._delay_steps = self._fitted_delay_steps + drawn_delay
+        self._chain.delay_steps = self._fitted_delay_steps + drawn_delay
         self._variation.update(
             visual_randomization=self.visual_randomization,
             visual=visual,
@@ -715,60 +732,28 @@ class SoArmEnv(gym.Env):
         array = self._validate_action(action)
         if self._needs_reset:
             raise RuntimeError(f"call reset() before step(): {self._no_episode_reason}.")
-        self._task.before_step(self._servo_target(array), self._physics)
-        try:
-            self._physics.step(constants.N_SUBSTEPS)
-        except control.PhysicsError as exc:
-            divergence = str(exc)
-        else:
-            divergence = self._divergence()
         self._step_count += 1
-        if divergence is not None:
-            return self._truncate_diverged_episode(divergence)
-        task = self._task
-        sim = task.arrays(self._physics)
-        evaluation = task.evaluate(sim)
-        success = bool(evaluation["success"])
-        terms = task.batch_reward_terms(evaluation)
-        if self.reward_type == "sparse":
-            reward = float(success)
-        elif success:
-            reward = self._success_reward()
-        else:
-            reward = float(task.weights.total(terms))
-        obs = self._observation(sim)
-        info = self._info(sim, evaluation, terms)
+        result = self._core.step(
+            self._chain.targets(array),
+            self._step_count,
+            self.step_limit,
+            self.reward_type == "sparse",
+        )
+        if result.diverged:
+            return self._truncate_diverged_episode(result.diverged[0])
+        obs = self._observation(result.sim)
+        info = self._info(result.sim, result.evaluation, result.terms)
         if self._viewer is not None:
             self._viewer.show(info)
-        return obs, reward, success, False, info
+        return obs, result.reward, result.success, False, info
 
-    def _servo_target(self, action: np.ndarray) -> np.ndarray:
-        """The servo targets (rad) this step sends for a validated ``action``: the control
-        mode's, after the servo delay and the servo model; updates the commanded targets."""
-        target = self._control.targets(action, self._commanded)
-        self._commanded = target.copy()
-        if self._delay_steps:
-            # The servos receive the action of ``_delay_steps`` steps before.
-            self._pending_targets.append(target)
-            target = self._pending_targets.pop(0)
-        if self._servo is not None:
-            target = self._servo(target)
-        return target
-
-    def _success_reward(self) -> float:
-        """The dense reward of a success step: 1, plus 1 for every step left to the limit.
-
-        What the episode would have earned at the most had it gone on to its step limit
-        (``spec.max_episode_steps``, else the task's), paid at once: an episode that
-        succeeds returns more than one that follows it to the step before and then hovers
-        short of success (every dense step of an unsuccessful state pays less than 1),
-        undiscounted and for every discount factor.
-        """
+    @property
+    def step_limit(self) -> int:
+        """The episode's step limit: the id's ``max_episode_steps``, else the task's."""
         spec = self.spec
-        limit = spec.max_episode_steps if spec is not None and spec.max_episode_steps else None
-        if limit is None:
-            limit = self._spec.max_episode_steps
-        return float(1 + max(limit - self._step_count, 0))
+        if spec is not None and spec.max_episode_steps:
+            return int(spec.max_episode_steps)
+        return int(self._spec.max_episode_steps)
 
     def render(self) -> np.ndarray | None:
         """The ``render_camera`` frame (``rgb_array``), or draw the window (``human``).
@@ -811,33 +796,6 @@ class SoArmEnv(gym.Env):
                 f"{method}() was called after close(): this environment was closed and its GL "
                 "contexts and windows freed. Create a new one with gym.make(...)."
             )
-
-    def _divergence(self) -> str | None:
-        """Why the simulation state is no longer physical, or None while it is sound.
-
-        Besides NaN/inf (MuJoCo's own instability warnings raise ``PhysicsError`` in
-        ``step``), an object thrown beyond the observation bounds or a joint turned past
-        +-pi can only come from an exploding simulation.
-        """
-        physics = self._physics
-        if not physics.state_is_finite():
-            return "the simulation state holds NaN or inf"
-        # Plain floats: a few numpy reductions would cost more than the rest of the check.
-        farthest = physics.max_object_distance()
-        if farthest is not None and farthest[1] > constants.POSITION_BOUND_M:
-            name = farthest[0]
-            where = [round(v, 2) for v in physics.object_position(name).tolist()]
-            return (
-                f"the {name} was thrown to {where} m, more than "
-                f"{constants.POSITION_BOUND_M} m from the table"
-            )
-        angles = physics.joint_angles().tolist()
-        if max(map(abs, angles)) > math.pi:
-            name, angle = max(
-                zip(constants.JOINT_NAMES, angles, strict=True), key=lambda item: abs(item[1])
-            )
-            return f"joint {name!r} turned to {angle:.2f} rad"
-        return None
 
     def _truncate_diverged_episode(self, reason: str) -> tuple[Any, float, bool, bool, dict]:
         """End the episode after a divergence with the last sound observation and info.
@@ -889,13 +847,13 @@ class SoArmEnv(gym.Env):
         """The observation now (``sim``: this step's arrays of the simulation, if made)."""
         physics = self._physics
         if self.obs_type == "state":
-            sim = self._task.arrays(physics) if sim is None else sim
-            obs = self._state_observation.batch(sim, self._commanded)
+            sim = self._core.arrays() if sim is None else sim
+            obs = self._core.state_observation(sim, self._chain.commanded)
         elif self.obs_type == "environment_state_agent_pos":
-            sim = self._task.arrays(physics) if sim is None else sim
+            sim = self._core.arrays() if sim is None else sim
             obs = {
                 "agent_pos": self._units.from_radians(physics.joint_angles()),
-                "environment_state": np.asarray(self._task.batch_state(sim)),
+                "environment_state": self._core.environment_state(sim),
             }
         elif self.image_modalities != ("rgb",):
             obs = self._modality_observation()
@@ -946,19 +904,18 @@ class SoArmEnv(gym.Env):
         ``sim``, ``evaluation`` and ``terms``: the step's arrays, task evaluation and
         reward terms (one environment, unbatched); a reset evaluates the task here, once.
         """
-        physics = self._physics
         task = self._task
         if sim is None:
-            sim = task.arrays(physics)
+            sim = self._core.arrays()
         if evaluation is None:
             evaluation = task.evaluate(sim)
         if terms is None:
             terms = task.batch_reward_terms(evaluation)
-        task_info = task.compute_info(sim, evaluation)
+        task_info, gripper = self._core.info_values(sim, evaluation, terms)
         self._last_info = {
             "is_success": bool(evaluation["success"]),
             **{key: item(value) for key, value in task_info.items()},
-            "gripper_pos": physics.gripper_position(),
+            "gripper_pos": gripper.copy(),
             "reward_terms": {name: float(value) for name, value in terms.items()},
             "task": self.task_description,
             "physics_unstable": False,

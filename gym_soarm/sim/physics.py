@@ -26,6 +26,7 @@ from gym_soarm.sim.arrays import ARRAY_FIELDS, SimIndex
 
 logger = logging.getLogger(__name__)
 _WARNING_NAMES: tuple[str, ...] = tuple(mujoco.mjtWarning.__members__)
+_NO_SENSORS = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 _RK4 = int(mujoco.mjtIntegrator.mjINT_RK4)
 
 
@@ -237,9 +238,22 @@ class SoArmPhysics(dm_mujoco.Physics):
         if not self.legacy_step:
             mujoco.mj_step(m, d, nstep)
         elif self._mj_option.integrator != _RK4:
-            mujoco.mj_step2(m, d)
             if nstep > 1:
-                mujoco.mj_step(m, d, nstep - 1)
+                # The sensors (the scene's contact sensors) are read once a control
+                # step: computed on its last substep only. They never act on the
+                # dynamics, so the state is the same bit for bit.
+                option = self._mj_option
+                flags = option.disableflags
+                option.disableflags = flags | _NO_SENSORS
+                try:
+                    mujoco.mj_step2(m, d)
+                    if nstep > 2:
+                        mujoco.mj_step(m, d, nstep - 2)
+                finally:
+                    option.disableflags = flags
+                mujoco.mj_step(m, d, 1)
+            else:
+                mujoco.mj_step2(m, d)
             mujoco.mj_step1(m, d)
         else:
             mujoco.mj_step(m, d, nstep)

@@ -132,6 +132,17 @@ class Sts3215Servo:
         self._command = [float(v) for v in targets]
         self._output = list(self._command)
 
+    @property
+    def state(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """The commanded and the output positions (rad), for a snapshot."""
+        return tuple(self._command), tuple(self._output)
+
+    @state.setter
+    def state(self, value: tuple[Any, Any]) -> None:
+        command, output = value
+        self._command = [float(v) for v in command]
+        self._output = [float(v) for v in output]
+
     def __call__(self, target: np.ndarray) -> np.ndarray:
         """The servo target (rad) that the action ``target`` (rad) gives this step."""
         # Six plain floats: cheaper than a dozen numpy calls on arrays of six.

@@ -28,22 +28,21 @@
 from __future__ import annotations
 
 import copy
-import math
 import warnings
 from collections.abc import Sequence
 from typing import Any
 
-import mujoco
-import mujoco.batch
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from gym_soarm import constants
 from gym_soarm.envs.control import JOINT_DELTA, JOINT_POS, NormalizedControl
+from gym_soarm.envs.core import StepCore
 from gym_soarm.envs.env import SoArmEnv
 from gym_soarm.envs.settings import STATE_OBS_TYPES
-from gym_soarm.sim.arrays import ARRAY_FIELDS, SimArrays
+from gym_soarm.sim.arrays import SimArrays
+from gym_soarm.sim.backends import BatchBackend
 from gym_soarm.validation import check_int
 from gym_soarm.vector.common import (
     TIME_LIMIT_ATTRIBUTE,
@@ -58,10 +57,6 @@ from gym_soarm.vector.common import (
     values_per_env,
 )
 from gym_soarm.vector.workers import cpu_count
-
-_STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
-_STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
-_WARNINGS: tuple[str, ...] = tuple(mujoco.mjtWarning.__members__)
 
 
 def _row(value: Any, i: int) -> Any:
@@ -158,22 +153,21 @@ class BatchedVectorEnv(VectorEnv):
         self._obs = [np.zeros((num_envs, *shape), dtype) for _, shape, dtype in self._leaves]
 
         self._task = first.task_logic  # scores the batch; per-env values live in _episode
-        self._models = [env.physics.model.ptr for env in self.envs]
         try:
             _check_batchable(first.task_spec)
-            self._batch = mujoco.batch.Batch(self._models[0], num_envs, num_threads)
-            self._batch.set_models(self._models)
+            self._backend = BatchBackend(
+                [env.physics.model.ptr for env in self.envs], num_threads, first.physics.sim_index
+            )
         except BaseException:
             for env in self.envs:
                 env.close()
             raise
-        arrays = {name: self._batch.bind(name) for name in ARRAY_FIELDS}
-        self._ctrl = self._batch.bind("ctrl")
-        self._actuators = first.physics._actuator_ids
         self._episode = {
             name: np.zeros((num_envs, *shape)) for name, shape in self._task.episode_shapes.items()
         }
-        self._sim = SimArrays(first.physics.sim_index, arrays, self._episode)
+        # The step, written once (gym_soarm.envs.core), over the whole batch.
+        self._core = StepCore(self._task, self._backend, self._episode)
+        self._sim = self._core.arrays()
         self._commanded = np.zeros((num_envs, len(constants.JOINT_NAMES)))
         self._steps = np.zeros(num_envs, dtype=np.int64)  # this episode's, as the env's
         self._elapsed = np.zeros(num_envs, dtype=np.int64)  # the time limit's count
@@ -203,15 +197,14 @@ class BatchedVectorEnv(VectorEnv):
     def _load(self, i: int) -> None:
         """Copy environment ``i`` (just reset or restored) into the batch."""
         env = self.envs[i]
-        physics = env.physics
-        mujoco.mj_getState(physics.model.ptr, physics.data.ptr, self._batch.state[i], _STATE_SPEC)
+        self._backend.load(i, env.physics)
         for name, values in env.task_logic.episode.items():
             self._episode[name][i] = values[0]
         self._commanded[i] = env.commanded_targets
         # A servo delay (drawn at each reset with physics randomisation) or the servo
         # model: this environment converts its own actions.
-        self._own_control[i] = bool(env._delay_steps) or env._servo is not None
-        self._steps[i] = env._step_count
+        self._own_control[i] = not env.servo_chain.passes_through
+        self._steps[i] = env.step_count
         self._in_batch[i] = False
         self._instructions[i] = env.task_description
         self._sparse[i] = env.reward_type == "sparse"
@@ -221,17 +214,11 @@ class BatchedVectorEnv(VectorEnv):
         """Environment ``i`` with the batch's simulation and episode values copied back."""
         env = self.envs[i]
         if self._in_batch[i]:
-            physics = env.physics
-            data = physics.data.ptr
-            self._batch.get_data(i, data)
-            mujoco.mj_step1(physics.model.ptr, data)  # positions and velocities, as a step
-            # The last substep's accelerations and sensors, as a step leaves them.
-            data.qacc[:] = self._sim.qacc[i]
-            data.sensordata[:] = self._sim.sensordata[i]
+            self._backend.unload(i, env.physics)
             for name, values in env.task_logic.episode.items():
                 values[0] = self._episode[name][i]
-            env._commanded = self._commanded[i].copy()
-            env._step_count = int(self._steps[i])
+            env.servo_chain.commanded = self._commanded[i].copy()
+            env.step_count = int(self._steps[i])
             self._in_batch[i] = False
         return env
 
@@ -262,7 +249,7 @@ class BatchedVectorEnv(VectorEnv):
             obs, info = self._reset_one(i, seeds[i], options)
             self._write_obs(i, obs)
             infos = self._add_info(infos, info, i)
-        self._batch.set_models(self._models)  # the resets edited the models
+        self._backend.set_models()  # the resets edited the models
         self._autoreset_envs[mask] = False
         self._elapsed[mask] = 0
         self._started = True
@@ -305,11 +292,20 @@ class BatchedVectorEnv(VectorEnv):
             restart = self._autoreset_envs.copy()  # these reset instead of stepping
         stepping = ~restart
         ids = np.flatnonzero(stepping)
-        self._set_targets(array, ids)
-        diverged, reasons = self._step_physics(ids)
         self._steps[ids] += 1
         self._elapsed[ids] += 1
-        rewards, terminated, obs_rows, infos = self._score()
+        self._in_batch[ids] = True
+        result = self._core.step(
+            self._targets(array, ids), self._steps, self._step_limit(), self._sparse, ids
+        )
+        self._sim = result.sim
+        reasons = result.diverged
+        diverged = np.zeros(n, dtype=np.bool_)
+        diverged[list(reasons)] = True
+        rewards = result.reward
+        terminated = result.success.copy()
+        obs_rows = self._observations()
+        infos = self._infos(self._sim, result.evaluation, result.success, result.terms)
         terminated &= stepping
         truncated = np.zeros(n, dtype=np.bool_)
         if self.max_episode_steps is not None:
@@ -330,7 +326,7 @@ class BatchedVectorEnv(VectorEnv):
             self._elapsed[i] = 0
             infos = self._add_info(infos, info, i)
         if restart.any():
-            self._batch.set_models(self._models)
+            self._backend.set_models()
         self._last_infos = infos
         self._autoreset_envs = (
             ended if mode is not AutoresetMode.SAME_STEP else np.zeros(n, np.bool_)
@@ -343,108 +339,42 @@ class BatchedVectorEnv(VectorEnv):
         )
         return array.astype(np.float64)
 
-    def _set_targets(self, actions: np.ndarray, ids: np.ndarray) -> None:
-        """The servo targets of the stepping environments, into the batch's controls."""
+    def _targets(self, actions: np.ndarray, ids: np.ndarray) -> np.ndarray:
+        """The servo targets (rad) of the stepping environments ``ids``: converted for the
+        whole batch at once, or by each environment's servo chain (a delay, the servo
+        model, the end-effector modes)."""
         if self._control is not None and not self._own_control.any():
             targets = self._control.targets(actions[ids], self._commanded[ids])
             self._commanded[ids] = targets
-        else:
-            targets = np.empty((len(ids), len(constants.JOINT_NAMES)))
-            for k, i in enumerate(ids.tolist()):
-                env = self.envs[i]
-                env._commanded = self._commanded[i].copy()
-                targets[k] = env._servo_target(actions[i].copy())
-                self._commanded[i] = env._commanded
-        ctrl = self._ctrl
-        for column, actuator in enumerate(self._actuators.tolist()):
-            ctrl[ids, actuator] = targets[:, column]
+            return targets
+        targets = np.empty((len(ids), len(constants.JOINT_NAMES)))
+        for k, i in enumerate(ids.tolist()):
+            chain = self.envs[i].servo_chain
+            chain.commanded = self._commanded[i].copy()
+            targets[k] = chain.targets(actions[i].copy())
+            self._commanded[i] = chain.commanded
+        return targets
 
-    def _step_physics(self, ids: np.ndarray) -> tuple[np.ndarray, dict[int, str]]:
-        """Step the simulations ``ids`` in one call; which diverged, and why (as
-        :meth:`SoArmEnv.step <gym_soarm.envs.env.SoArmEnv.step>` finds it)."""
-        n = self.num_envs
-        if len(ids) == 0:
-            return np.zeros(n, dtype=np.bool_), {}
-        batch = self._batch
-        before = batch.warning[:, :, 1].copy()  # (lastinfo, number) per warning
-        reasons: dict[int, str] = {}
-        self._in_batch[ids] = True
-        try:
-            batch.step(None if len(ids) == n else ids, constants.N_SUBSTEPS, _STAGE_VEL)
-        except mujoco.batch.SimulationError as exc:
-            for i in exc.ids.tolist():
-                reasons[i] = f"MuJoCo raised: {batch.error(i)}"
-        self._sim.clear()
-        after = batch.warning[:, :, 1]
-        for i in np.flatnonzero((after > before).any(axis=1)).tolist():
-            names = [
-                w for w, old, new in zip(_WARNINGS, before[i], after[i], strict=False) if new > old
-            ]
-            reasons.setdefault(i, f"MuJoCo warned: {', '.join(names)}")
-        sim = self._sim
-        unsound = ~np.asarray(sim.state_is_finite())
-        far = np.zeros(n)
-        for name in sim.index.objects:
-            far = np.maximum(far, np.abs(sim.object_position(name)).max(axis=1))
-        angles = sim.joint_angles()
-        turned = (np.abs(angles) > math.pi).any(axis=1)
-        for i in np.flatnonzero(unsound | (far > constants.POSITION_BOUND_M) | turned).tolist():
-            if unsound[i]:
-                reason = "the simulation state holds NaN or inf"
-            elif far[i] > constants.POSITION_BOUND_M:
-                reason = f"an object was thrown {far[i]:.2f} m from the table"
-            else:
-                joint = int(np.argmax(np.abs(angles[i])))
-                reason = (
-                    f"joint {constants.JOINT_NAMES[joint]!r} turned to {angles[i, joint]:.2f} rad"
-                )
-            reasons.setdefault(i, reason)
-        stepped = np.zeros(n, dtype=np.bool_)
-        stepped[ids] = True
-        diverged = np.zeros(n, dtype=np.bool_)
-        diverged[list(reasons)] = True
-        return diverged & stepped, reasons
-
-    def _score(self) -> tuple[np.ndarray, np.ndarray, list[np.ndarray], dict[str, Any]]:
-        """Rewards, terminations, observation rows and infos of the whole batch."""
-        task, sim = self._task, self._sim
-        evaluation = task.evaluate(sim)
-        success = np.asarray(evaluation["success"], dtype=np.bool_)
-        terms = task.batch_reward_terms(evaluation)
-        first = self.envs[0]
-        if self._sparse.all():
-            rewards = success.astype(np.float64)
-        else:
-            limit = (
-                first.spec.max_episode_steps
-                if first.spec is not None and first.spec.max_episode_steps
-                else first.task_spec.max_episode_steps
-            )
-            bonus = 1.0 + np.maximum(limit - self._steps, 0)
-            rewards = np.where(
-                success, bonus, np.asarray(task.weights.total(terms), dtype=np.float64)
-            )
-            rewards = np.where(self._sparse, success.astype(np.float64), rewards)
-        obs_rows = self._observations()
-        infos = self._infos(sim, evaluation, success, terms)
-        return rewards, success.copy(), obs_rows, infos
+    def _step_limit(self) -> int:
+        """The step limit of the success reward, as each environment counts it."""
+        return self.envs[0].step_limit
 
     def _observations(self) -> list[np.ndarray]:
         first = self.envs[0]
         if first.obs_type == "state":
-            return [np.asarray(first._state_observation.batch(self._sim, self._commanded))]
+            return [np.asarray(self._core.state_observation(self._sim, self._commanded))]
         if first.obs_type == "environment_state_agent_pos":
             angles = self._sim.joint_angles()
             values = {
                 ("agent_pos",): first.joint_units.from_radians(angles),
-                ("environment_state",): np.asarray(self._task.batch_state(self._sim)),
+                ("environment_state",): self._core.environment_state(self._sim),
             }
             return [values[path].astype(dtype) for path, _, dtype in self._leaves]
         # Pixels: each environment renders its own copy of the simulation.
         rows = [np.zeros_like(a) for a in self._obs]
         for i in range(self.num_envs):
             env = self._unload(i)
-            obs = env._observation()
+            obs = env.observation()
             for (path, _, _), array in zip(self._leaves, rows, strict=True):
                 array[i] = leaf_value(obs, path)
         return rows
@@ -455,10 +385,11 @@ class BatchedVectorEnv(VectorEnv):
         n = self.num_envs
         ones = np.ones(n, dtype=np.bool_)
         infos: dict[str, Any] = {"is_success": success, "_is_success": ones}
-        for key, value in self._task.compute_info(sim, evaluation).items():
+        task_info, gripper = self._core.info_values(sim, evaluation, terms)
+        for key, value in task_info.items():
             infos[key] = _column(value, n)
             infos[f"_{key}"] = ones
-        infos["gripper_pos"] = np.array(sim.gripper_position())
+        infos["gripper_pos"] = np.array(gripper)
         infos["_gripper_pos"] = ones
         reward_terms: dict[str, Any] = {}
         for name, value in terms.items():
@@ -511,9 +442,8 @@ class BatchedVectorEnv(VectorEnv):
                     value[i] = reset_info[key]
                 elif reset_info is None and key in previous:
                     value[i] = previous[key][i]
-            env = self.envs[i]  # as a single environment, it refuses to go on until reset
-            env._needs_reset = True
-            env._no_episode_reason = (
+            # As a single environment, it refuses to go on until reset.
+            self.envs[i].end_episode(
                 f"the previous step truncated the episode because the physics diverged "
                 f"({reasons[i]})"
             )
@@ -539,7 +469,7 @@ class BatchedVectorEnv(VectorEnv):
             self._write_obs(i, obs)
             self._elapsed[i] = 0
             infos = self._add_info(infos, info, i)
-        self._batch.set_models(self._models)
+        self._backend.set_models()
         for i in sorted(finals):
             infos = self._add_info(
                 infos, {"final_obs": finals[i][0], "final_info": finals[i][1]}, i
@@ -571,7 +501,7 @@ class BatchedVectorEnv(VectorEnv):
         try:
             return tuple(self._call(i, name, args, kwargs) for i in range(self.num_envs))
         finally:
-            self._batch.set_models(self._models)
+            self._backend.set_models()
 
     def call_some(
         self, indices: Sequence[int], name: str, *args: Any, **kwargs: Any
@@ -582,7 +512,7 @@ class BatchedVectorEnv(VectorEnv):
         try:
             return {i: self._call(i, name, args, kwargs) for i in wanted}
         finally:
-            self._batch.set_models(self._models)
+            self._backend.set_models()
 
     def _call(self, i: int, name: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
         """Call ``name`` on environment ``i`` as the batch left it; whatever the call
@@ -607,12 +537,14 @@ class BatchedVectorEnv(VectorEnv):
         for i, value in enumerate(values_per_env(values, self.num_envs)):
             setattr(self._unload(i), name, copy.copy(value))
             self._load(i)
-        self._batch.set_models(self._models)
+        self._backend.set_models()
 
     def close_extras(self, **kwargs: Any) -> None:
         """Close every environment and release the batch and its threads."""
         # Every reference to the batch goes (its bound arrays hold it too).
-        self._batch = self._ctrl = self._sim = None
+        if self._backend is not None:
+            self._backend.close()
+        self._backend = self._core = self._sim = None
         errors = []
         for env in self.envs:
             try:

@@ -1,0 +1,157 @@
+"""Physics backends: N simulations of one scene behind one small interface.
+
+The step core (:mod:`gym_soarm.envs.core`) is written once over a backend; a backend
+only loads the model, sets the servo targets, steps, exposes the arrays the tasks read
+(:class:`~gym_soarm.sim.arrays.SimArrays`) and copies one simulation's state out to an
+environment's own ``MjData`` and back in:
+
+* :class:`MjDataBackend`: one environment's own ``MjData`` (N = 1), read without a
+  batch axis (the tasks' unbatched fast path);
+* :class:`BatchBackend`: N simulations in one ``mujoco.batch.Batch`` (MuJoCo's thread
+  pool, the GIL released, bit for bit what stepping each alone gives).
+
+A backend reports which simulations MuJoCo itself found unsound (a raised error, a new
+warning); the core adds its own checks (NaN, thrown objects, turned joints).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, Protocol
+
+import mujoco
+import mujoco.batch
+import numpy as np
+from dm_control.rl import control
+
+from gym_soarm import constants
+from gym_soarm.sim.arrays import ARRAY_FIELDS, SimArrays, SimIndex
+from gym_soarm.sim.physics import SoArmPhysics
+
+_STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+_STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
+_WARNINGS: tuple[str, ...] = tuple(mujoco.mjtWarning.__members__)
+_SOUND: dict[int, str] = {}  # what a sound step reports (never written to)
+
+
+class Backend(Protocol):
+    """N simulations of one scene, as the step core drives them."""
+
+    num_envs: int
+    index: SimIndex
+
+    def set_targets(self, ids: np.ndarray | None, targets: np.ndarray) -> None:
+        """The servo targets (rad, ``(len(ids), 6)``) of simulations ``ids`` (None: all)."""
+
+    def step(self, ids: np.ndarray | None, nstep: int) -> dict[int, str]:
+        """Advance simulations ``ids`` (None: all) by ``nstep`` physics steps; the
+        simulations MuJoCo found unsound on the way, with why."""
+
+    def arrays(self, episode: dict[str, Any]) -> SimArrays:
+        """Live arrays of every simulation, with the tasks' per-episode values."""
+
+
+class MjDataBackend:
+    """One environment's simulation: its own :class:`~gym_soarm.sim.physics.SoArmPhysics`.
+
+    Its arrays are the ``MjData``'s own, without the batch axis, so the tasks score it
+    with plain scalars (:data:`gym_soarm.sim.arrays.SCALARS`).
+    """
+
+    num_envs = 1
+
+    def __init__(self, physics: SoArmPhysics) -> None:
+        self.physics = physics
+        self.index = physics.sim_index
+
+    def set_targets(self, ids: np.ndarray | None, targets: np.ndarray) -> None:
+        self.physics.set_joint_targets(targets)
+
+    def step(self, ids: np.ndarray | None, nstep: int) -> dict[int, str]:
+        try:
+            self.physics.step(nstep)
+        except control.PhysicsError as exc:
+            return {0: str(exc)}
+        return _SOUND
+
+    def arrays(self, episode: dict[str, Any]) -> SimArrays:
+        return SimArrays.of_physics(self.physics, episode)
+
+
+class BatchBackend:
+    """N simulations in one ``mujoco.batch.Batch``, one model each.
+
+    Args:
+        models: each simulation's ``MjModel`` (compiled from one scene; resets may edit
+            them: call :meth:`set_models` after).
+        num_threads: the threads that step the batch.
+        index: where the scene's parts lie (every model shares it).
+    """
+
+    def __init__(self, models: Sequence[mujoco.MjModel], num_threads: int, index: SimIndex) -> None:
+        self.num_envs = len(models)
+        self.index = index
+        self._models = list(models)
+        self._batch = mujoco.batch.Batch(self._models[0], self.num_envs, num_threads)
+        self._batch.set_models(self._models)
+        self._fields = {name: self._batch.bind(name) for name in ARRAY_FIELDS}
+        self._ctrl = self._batch.bind("ctrl")
+        model = self._models[0]
+        self._actuators = [
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
+            for name in constants.JOINT_NAMES
+        ]
+
+    def set_models(self) -> None:
+        """Take in what resets wrote into the models (poses of fixtures, randomisation)."""
+        self._batch.set_models(self._models)
+
+    def set_targets(self, ids: np.ndarray | None, targets: np.ndarray) -> None:
+        rows = slice(None) if ids is None else ids
+        for column, actuator in enumerate(self._actuators):
+            self._ctrl[rows, actuator] = targets[:, column]
+
+    def step(self, ids: np.ndarray | None, nstep: int) -> dict[int, str]:
+        batch = self._batch
+        if ids is not None and len(ids) == 0:
+            return {}
+        before = batch.warning[:, :, 1].copy()  # (lastinfo, number) per warning
+        reasons: dict[int, str] = {}
+        try:
+            batch.step(None if ids is None or len(ids) == self.num_envs else ids, nstep, _STAGE_VEL)
+        except mujoco.batch.SimulationError as exc:
+            for i in exc.ids.tolist():
+                reasons[i] = f"MuJoCo raised: {batch.error(i)}"
+        after = batch.warning[:, :, 1]
+        for i in np.flatnonzero((after > before).any(axis=1)).tolist():
+            names = [
+                w for w, old, new in zip(_WARNINGS, before[i], after[i], strict=False) if new > old
+            ]
+            reasons.setdefault(
+                i, f"Physics state is invalid. Warning(s) raised: {', '.join(names)}"
+            )
+        return reasons
+
+    def arrays(self, episode: dict[str, Any]) -> SimArrays:
+        return SimArrays(self.index, self._fields, episode)
+
+    def load(self, i: int, physics: SoArmPhysics) -> None:
+        """Copy ``physics`` (an environment's own simulation) into simulation ``i``."""
+        mujoco.mj_getState(physics.model.ptr, physics.data.ptr, self._batch.state[i], _STATE_SPEC)
+
+    def unload(self, i: int, physics: SoArmPhysics) -> None:
+        """Copy simulation ``i`` into ``physics``, as a step of that environment leaves it."""
+        data = physics.data.ptr
+        self._batch.get_data(i, data)
+        mujoco.mj_step1(physics.model.ptr, data)  # positions and velocities, as a step
+        # The last substep's accelerations and sensors, as a step leaves them.
+        data.qacc[:] = self._fields["qacc"][i]
+        data.sensordata[:] = self._fields["sensordata"][i]
+
+    def close(self) -> None:
+        """Release the batch and its threads (every reference to it goes)."""
+        self._batch = self._ctrl = None
+        self._fields = {}
+
+
+__all__ = ["Backend", "BatchBackend", "MjDataBackend"]
