@@ -43,7 +43,8 @@ from gym_soarm.envs.env import SoArmEnv
 from gym_soarm.envs.settings import STATE_OBS_TYPES
 from gym_soarm.sim.arrays import SimArrays
 from gym_soarm.sim.backends import BatchBackend
-from gym_soarm.validation import check_int
+from gym_soarm.sim.warp_backend import WarpBackend, check_device
+from gym_soarm.validation import check_choice, check_int
 from gym_soarm.vector.common import (
     TIME_LIMIT_ATTRIBUTE,
     batched_obs,
@@ -103,6 +104,11 @@ class BatchedVectorEnv(VectorEnv):
             process may use, at most ``num_envs``).
         copy: return fresh observation arrays on every call (default). With False the
             same arrays are filled again by the next call.
+        physics: ``"mujoco"`` (default: one ``mujoco.batch``, bit for bit the single
+            envs' episodes) or ``"warp"`` (MuJoCo Warp, float32:
+            :mod:`gym_soarm.sim.warp_backend`).
+        device: with ``physics="warp"``, the Warp device: ``"cuda"`` (default),
+            ``"cuda:N"`` or ``"cpu"``.
         **env_kwargs: the arguments of :class:`~gym_soarm.envs.env.SoArmEnv`.
 
     Raises:
@@ -117,10 +123,21 @@ class BatchedVectorEnv(VectorEnv):
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         num_threads: int | None = None,
         copy: bool = True,
+        physics: str = "mujoco",
+        device: str | None = None,
         **env_kwargs: Any,
     ) -> None:
         self.closed = True
         num_envs = check_int("num_envs", num_envs, 1)
+        check_choice("physics", physics, PHYSICS_BACKENDS)
+        if physics == "mujoco" and device is not None:
+            raise ValueError(
+                f"device applies to physics='warp' (MuJoCo Warp); got device={device!r} with "
+                "physics='mujoco'. Remove device or pass vector_env='warp'."
+            )
+        if physics == "warp":
+            device = check_device("cuda" if device is None else device)
+            _check_warp_settings(env_kwargs)
         if num_threads is None:
             num_threads = cpu_count()
         num_threads = min(check_int("num_threads", num_threads, 1), num_envs)
@@ -155,9 +172,12 @@ class BatchedVectorEnv(VectorEnv):
         self._task = first.task_logic  # scores the batch; per-env values live in _episode
         try:
             _check_batchable(first.task_spec)
-            self._backend = BatchBackend(
-                [env.physics.model.ptr for env in self.envs], num_threads, first.physics.sim_index
-            )
+            models = [env.physics.model.ptr for env in self.envs]
+            index = first.physics.sim_index
+            if physics == "warp":
+                self._backend = WarpBackend(models, device, index)
+            else:
+                self._backend = BatchBackend(models, num_threads, index)
         except BaseException:
             for env in self.envs:
                 env.close()
@@ -593,7 +613,26 @@ def wants_batched(env_kwargs: dict[str, Any]) -> bool:
     return obs_type in STATE_OBS_TYPES
 
 
-VECTOR_ENVS: tuple[str, ...] = ("auto", "batched", "processes")
+def _check_warp_settings(env_kwargs: dict[str, Any]) -> None:
+    """Refuse the settings whose resets change a world's physics model beyond what the
+    Warp backend batches per world (fixture poses)."""
+    settings = env_kwargs.get("settings")
+    level = env_kwargs.get(
+        "physics_randomization", getattr(settings, "physics_randomization", "none")
+    )
+    if level != "none":
+        raise ValueError(
+            f"physics_randomization={level!r} draws masses, friction, gains and damping into "
+            "each environment's model at every reset; the Warp backend shares one model "
+            "across its worlds and batches only the fixtures' poses. Use "
+            "physics_randomization='none' with vector_env='warp', or vector_env='batched'."
+        )
+
+
+PHYSICS_BACKENDS: tuple[str, ...] = ("mujoco", "warp")
+"""The physics of the batched vector env: C MuJoCo's ``mujoco.batch`` or MuJoCo Warp."""
+
+VECTOR_ENVS: tuple[str, ...] = ("auto", "batched", "processes", "warp")
 """Values of ``vector_env``: how ``gym.make_vec(..., vectorization_mode="vector_entry_point")``
 steps the environments."""
 
@@ -606,7 +645,8 @@ def make_vector_env(num_envs: int, vector_env: str = "auto", **kwargs: Any) -> V
     Args:
         num_envs: number of environments.
         vector_env: ``"batched"`` (:class:`BatchedVectorEnv`: one ``mujoco.batch``, the
-            tasks scored as arrays), ``"processes"``
+            tasks scored as arrays), ``"warp"`` (the same env on MuJoCo Warp, with a
+            ``device`` keyword: ``"cuda"``, ``"cuda:N"`` or ``"cpu"``), ``"processes"``
             (:class:`~gym_soarm.vector.SoArmVectorEnv`: worker processes, each stepping
             its block of environments) or ``"auto"`` (default): batched for state
             observations, processes for pixels or where ``num_processes`` or
@@ -616,13 +656,14 @@ def make_vector_env(num_envs: int, vector_env: str = "auto", **kwargs: Any) -> V
     Raises:
         ValueError: an unknown ``vector_env``, or process arguments for the batched env.
     """
-    from gym_soarm.validation import check_choice
     from gym_soarm.vector.processes import SoArmVectorEnv
 
     check_choice("vector_env", vector_env, VECTOR_ENVS)
     process_args = [k for k in _PROCESS_KEYWORDS if kwargs.get(k) is not None]
     if vector_env == "auto":
         vector_env = "batched" if wants_batched(kwargs) and not process_args else "processes"
+    if vector_env == "warp":
+        kwargs["physics"] = "warp"
     if vector_env == "processes":
         kwargs.pop("num_threads", None)
         return SoArmVectorEnv(num_envs, **kwargs)
