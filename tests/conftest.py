@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import signal
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -61,3 +63,17 @@ def rollout(env: gym.Env, seed: int, steps: int, action_seed: int = 0):
 
 
 assert gym_soarm.ENV_IDS  # the import registers the ids used by every test
+
+
+@pytest.fixture(autouse=True)
+def _ctrl_c_as_a_terminal_gives_it():
+    """Every test starts and ends with Python's own Ctrl-C handler in this process.
+
+    Programs that the tests start (the recorder, the vector env's scripts) inherit this
+    process's disposition of SIGINT, and a Python started with SIGINT ignored never
+    raises KeyboardInterrupt: one test that left it ignored would make the Ctrl-C tests
+    of later programs wait forever. A terminal never starts a program that way.
+    """
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, signal.default_int_handler)
