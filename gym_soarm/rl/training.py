@@ -27,8 +27,6 @@ import json
 import logging
 import os
 import pickle
-import signal
-import threading
 import time
 import warnings
 from collections.abc import Mapping
@@ -58,6 +56,7 @@ from gym_soarm.rl.evaluation import (
     score,
 )
 from gym_soarm.rl.hyperparams import ALGORITHMS, IMITATION, POLICY_CLASSES, VEC_ENVS, recipe
+from gym_soarm.rl.runs import StopOnInterrupt
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
 from gym_soarm.validation import check_choice, check_int
@@ -376,28 +375,16 @@ def train(
     run = _Run(out_path, spec.name, env_kwargs, episodes, title, model)
 
     class _StopOnInterrupt(BaseCallback):
-        """Ctrl-C (SIGINT) ends the run after the current step, cleanly: the callback
-        stops ``learn`` and the run keeps its checkpoint and curve."""
+        """Stops ``learn`` after the current step once Ctrl-C was pressed
+        (:class:`~gym_soarm.rl.runs.StopOnInterrupt`); the run keeps its checkpoint and
+        curve."""
 
-        def __init__(self) -> None:
+        def __init__(self, flag: StopOnInterrupt) -> None:
             super().__init__()
-            self.interrupted = False
-            self._previous: Any = None
-
-        def __enter__(self) -> _StopOnInterrupt:
-            if threading.current_thread() is threading.main_thread():
-                self._previous = signal.signal(signal.SIGINT, self._interrupt)
-            return self
-
-        def __exit__(self, *exc: object) -> None:
-            if self._previous is not None:
-                signal.signal(signal.SIGINT, self._previous)
-
-        def _interrupt(self, signum: int, frame: Any) -> None:
-            self.interrupted = True
+            self.flag = flag
 
         def _on_step(self) -> bool:
-            return not self.interrupted
+            return not self.flag.interrupted
 
     class _Evaluate(BaseCallback):
         def __init__(self) -> None:
@@ -412,10 +399,14 @@ def train(
             return True
 
     callback = _Evaluate()
-    stop = _StopOnInterrupt()
+    stop = StopOnInterrupt()
     try:
         with stop:
-            model.learn(total_timesteps=steps, callback=[callback, stop], progress_bar=progress_bar)
+            model.learn(
+                total_timesteps=steps,
+                callback=[callback, _StopOnInterrupt(stop)],
+                progress_bar=progress_bar,
+            )
         if stop.interrupted:
             logger.warning("%s: interrupted; the checkpoint and the curve are kept", title)
             run.save()
