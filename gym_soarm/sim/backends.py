@@ -24,14 +24,24 @@ import mujoco.batch
 import numpy as np
 from dm_control.rl import control
 
-from gym_soarm import constants
 from gym_soarm.sim.arrays import ARRAY_FIELDS, SimArrays, SimIndex
 from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.sim.randomization import arm_indices
 
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 _STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
 _WARNINGS: tuple[str, ...] = tuple(mujoco.mjtWarning.__members__)
 _SOUND: dict[int, str] = {}  # what a sound step reports (never written to)
+
+
+def write_targets(
+    ctrl: np.ndarray, actuators: np.ndarray, ids: np.ndarray | None, targets: np.ndarray
+) -> None:
+    """Write the servo targets (``(len(ids), 6)``, rad) of simulations ``ids`` (None:
+    all) into the rows of a batch's ``ctrl`` (``(n, nu)``)."""
+    rows = slice(None) if ids is None else ids
+    for column, actuator in enumerate(actuators.tolist()):
+        ctrl[rows, actuator] = targets[:, column]
 
 
 class Backend(Protocol):
@@ -96,20 +106,14 @@ class BatchBackend:
         self._batch.set_models(self._models)
         self._fields = {name: self._batch.bind(name) for name in ARRAY_FIELDS}
         self._ctrl = self._batch.bind("ctrl")
-        model = self._models[0]
-        self._actuators = [
-            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
-            for name in constants.JOINT_NAMES
-        ]
+        self._actuators, _ = arm_indices(self._models[0])
 
     def set_models(self) -> None:
         """Take in what resets wrote into the models (poses of fixtures, randomisation)."""
         self._batch.set_models(self._models)
 
     def set_targets(self, ids: np.ndarray | None, targets: np.ndarray) -> None:
-        rows = slice(None) if ids is None else ids
-        for column, actuator in enumerate(self._actuators):
-            self._ctrl[rows, actuator] = targets[:, column]
+        write_targets(self._ctrl, self._actuators, ids, targets)
 
     def step(self, ids: np.ndarray | None, nstep: int) -> dict[int, str]:
         batch = self._batch
@@ -154,4 +158,4 @@ class BatchBackend:
         self._fields = {}
 
 
-__all__ = ["Backend", "BatchBackend", "MjDataBackend"]
+__all__ = ["Backend", "BatchBackend", "MjDataBackend", "write_targets"]

@@ -30,14 +30,17 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from gym_soarm import constants
 from gym_soarm.sim.arrays import ARRAY_FIELDS, SimArrays, SimIndex
+from gym_soarm.sim.backends import write_targets
 from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.sim.randomization import arm_indices
 
 CONTACTS_PER_WORLD = 48
 """Contacts a world may hold (the scenes hold at most ~20 at rest: jaws, objects, table)."""
 CONSTRAINTS_PER_WORLD = 256
 """Constraint rows a world may hold (pyramidal friction cones: 4 rows a contact)."""
+_STATE_FIELDS = ("qpos", "qvel", "act", "qacc_warmstart", "mocap_pos", "mocap_quat", "time")
+"""The ``MjData`` fields that make a world's state (``mj_step`` reads them)."""
 WORLD_MODEL_FIELDS: tuple[str, ...] = ("body_pos", "body_quat")
 """The model fields that differ per world (what the tasks' resets place)."""
 DEVICES_HELP = '"cpu", "cuda" or "cuda:N"'
@@ -105,6 +108,7 @@ class WarpBackend:
         self.device = device
         self._models = list(models)
         model = self._models[0]
+        self._actuators, _ = arm_indices(model)
         with wp.ScopedDevice(device):
             self._model = mjw.put_model(model, batch_sizes=dict.fromkeys(WORLD_MODEL_FIELDS, n))
             self._data = mjw.make_data(
@@ -113,32 +117,30 @@ class WarpBackend:
                 nconmax=CONTACTS_PER_WORLD,
                 njmax=CONSTRAINTS_PER_WORLD,
             )
-        self._actuators = [
-            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
-            for name in constants.JOINT_NAMES
-        ]
         self._ctrl = np.zeros((n, model.nu))
         self._host: dict[str, np.ndarray] = {}
+        self._staged: dict[str, np.ndarray] = {}  # loaded states not yet on the device
         self.set_models()
         self._read()
 
     # --- the model ---------------------------------------------------------------------
     def set_models(self) -> None:
-        """Take in what resets wrote into the environments' models (fixture poses)."""
+        """Take in what resets wrote into the environments' models (fixture poses) and
+        the states :meth:`load` staged."""
         for name in WORLD_MODEL_FIELDS:
             values = np.stack([getattr(m, name) for m in self._models])
             getattr(self._model, name).assign(values.astype(np.float32))
+        self._push()
 
     # --- stepping ----------------------------------------------------------------------
     def set_targets(self, ids: np.ndarray | None, targets: np.ndarray) -> None:
-        rows = slice(None) if ids is None else ids
-        for column, actuator in enumerate(self._actuators):
-            self._ctrl[rows, actuator] = targets[:, column]
+        write_targets(self._ctrl, self._actuators, ids, targets)
 
     def step(self, ids: np.ndarray | None, nstep: int) -> dict[int, str]:
         """Step every world ``nstep`` times (the worlds outside ``ids`` are those that
         reset right after, so they step too: one launch for all)."""
         wp, mjw = self._wp, self._mjw
+        self._push()
         with wp.ScopedDevice(self.device):
             self._data.ctrl.assign(self._ctrl.astype(np.float32))
             for _ in range(nstep):
@@ -182,19 +184,25 @@ class WarpBackend:
 
     # --- one world in and out ----------------------------------------------------------
     def load(self, i: int, physics: SoArmPhysics) -> None:
-        """Copy ``physics`` (an environment's own simulation) into world ``i``."""
+        """Stage ``physics`` (an environment's own simulation) as world ``i``'s state; the
+        staged worlds go to the device together, at :meth:`set_models` or the next step
+        (one copy of each array for a whole reset, not one per world)."""
         data = physics.data.ptr
-        for name in ("qpos", "qvel", "act", "qacc_warmstart", "mocap_pos", "mocap_quat"):
-            target = getattr(self._data, name)
-            if target.size == 0:
-                continue
-            values = target.numpy()
-            values[i] = getattr(data, name)
-            target.assign(values)
+        if not self._staged:  # the device's state, into which the loaded worlds go
+            self._staged = {name: getattr(self._data, name).numpy() for name in _STATE_FIELDS}
+        for name in _STATE_FIELDS:
+            if self._staged[name].size:
+                self._staged[name][i] = getattr(data, name)
         self._ctrl[i] = data.ctrl
-        time = self._data.time.numpy()
-        time[i] = data.time
-        self._data.time.assign(time)
+
+    def _push(self) -> None:
+        """The staged states onto the device, and their positions stage computed."""
+        if not self._staged:
+            return
+        for name, values in self._staged.items():
+            if values.size:
+                getattr(self._data, name).assign(values)
+        self._staged = {}
         with self._wp.ScopedDevice(self.device):
             self._mjw.forward(self._model, self._data)
         self._read()
