@@ -162,7 +162,7 @@ class StepCore:
                 f"the {farthest[0]} was thrown to {where} m, more than "
                 f"{constants.POSITION_BOUND_M} m from the table"
             )
-        angles = row(sim.qpos)[list(sim.index.arm_qpos)].tolist()
+        angles = row(sim.joint_angles()).tolist()
         if max(map(abs, angles)) > math.pi:
             name, angle = max(
                 zip(constants.JOINT_NAMES, angles, strict=True), key=lambda item: abs(item[1])
@@ -210,9 +210,7 @@ class StepCore:
         """The task's ``environment_state`` (``(..., size)``)."""
         return np.asarray(self.task.batch_state(sim))
 
-    def info_values(
-        self, sim: SimArrays, evaluation: dict[str, Any], terms: dict[str, Any]
-    ) -> tuple[dict[str, Any], Any]:
+    def info_values(self, sim: SimArrays, evaluation: dict[str, Any]) -> tuple[dict[str, Any], Any]:
         """The task's own info values and the ``gripperframe`` position: unbatched values
         for one environment, ``(n, ...)`` arrays for a batch (the caller formats them)."""
         return self.task.compute_info(sim, evaluation), sim.gripper_position()

@@ -911,7 +911,7 @@ class SoArmEnv(gym.Env):
             evaluation = task.evaluate(sim)
         if terms is None:
             terms = task.batch_reward_terms(evaluation)
-        task_info, gripper = self._core.info_values(sim, evaluation, terms)
+        task_info, gripper = self._core.info_values(sim, evaluation)
         self._last_info = {
             "is_success": bool(evaluation["success"]),
             **{key: item(value) for key, value in task_info.items()},

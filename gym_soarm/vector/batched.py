@@ -405,7 +405,7 @@ class BatchedVectorEnv(VectorEnv):
         n = self.num_envs
         ones = np.ones(n, dtype=np.bool_)
         infos: dict[str, Any] = {"is_success": success, "_is_success": ones}
-        task_info, gripper = self._core.info_values(sim, evaluation, terms)
+        task_info, gripper = self._core.info_values(sim, evaluation)
         for key, value in task_info.items():
             infos[key] = _column(value, n)
             infos[f"_{key}"] = ones
