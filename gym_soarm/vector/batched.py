@@ -316,7 +316,7 @@ class BatchedVectorEnv(VectorEnv):
         self._elapsed[ids] += 1
         self._in_batch[ids] = True
         result = self._core.step(
-            self._targets(array, ids), self._steps, self._step_limit(), self._sparse, ids
+            self._targets(array, ids), self._steps, self.envs[0].step_limit, self._sparse, ids
         )
         self._sim = result.sim
         reasons = result.diverged
@@ -374,10 +374,6 @@ class BatchedVectorEnv(VectorEnv):
             targets[k] = chain.targets(actions[i].copy())
             self._commanded[i] = chain.commanded
         return targets
-
-    def _step_limit(self) -> int:
-        """The step limit of the success reward, as each environment counts it."""
-        return self.envs[0].step_limit
 
     def _observations(self) -> list[np.ndarray]:
         first = self.envs[0]
