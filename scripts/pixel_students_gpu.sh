@@ -4,6 +4,7 @@
 # (SIGINT: checkpoint and curve kept) after LIMIT_S seconds.
 #
 #   OUT=/tmp/out bash scripts/pixel_students_gpu.sh            # the recipes, several seeds
+#                                                              # then each on the protocol
 #   OUT=/tmp/out VARIANTS=1 bash scripts/pixel_students_gpu.sh  # recipe variants on Lift
 #
 # Writes $OUT/pixel_runs.tgz (each run's settings.json, curve.csv, model.pt, log) and
@@ -45,15 +46,26 @@ if [ "${VARIANTS:-0}" = 1 ]; then
   run push_bc_fast bc PushCube-v0 0 learning_rate=1e-3 epochs=60 &
   wait
 else
+  # The recipes of docs/learning.md, three seeds on Lift (BC on 200 demonstrations and
+  # DAgger) and Reach (DAgger), one on Push.
   for seed in 0 1 2; do
-    run "lift_bc_s$seed" bc LiftCube-v0 "$seed" &
+    run "lift_bc_s$seed" bc LiftCube-v0 "$seed" demos=200 &
     run "lift_dagger_s$seed" dagger LiftCube-v0 "$seed" &
+    run "reach_dagger_s$seed" dagger ReachTarget-v0 "$seed" &
   done
-  run reach_dagger_s0 dagger ReachTarget-v0 0 &
   run push_dagger_s0 dagger PushCube-v0 0 &
-  run pick_and_place_dagger_s0 dagger PickAndPlaceCube-v0 0 &
 fi
 wait
+
+# Each policy on the benchmark's protocol (50 episodes, seeds 1000 + k), side by side.
+if [ "${PROTOCOL:-1}" = 1 ]; then
+  for dir in "$RUNS"/*/; do
+    [ -f "$dir/model.pt" ] || continue
+    OMP_NUM_THREADS=1 timeout -s INT "${EVAL_LIMIT_S:-150}" $PY -m gym_soarm.evaluate \
+      --policy "$dir" --episodes 50 --json "$dir/protocol.json" >"${dir%/}.eval.log" 2>&1 &
+  done
+  wait
+fi
 
 $PY - "$RUNS" >"$OUT/pixel_gpu_summary.json" <<'PY'
 import csv, json, pathlib, sys
@@ -67,6 +79,9 @@ for folder in sorted(p for p in root.iterdir() if p.is_dir()):
         ],
         "best_success": max((float(r["success_rate"]) for r in rows), default=None),
     }
+    protocol = folder / "protocol.json"
+    if protocol.is_file():
+        summary[folder.name]["protocol"] = json.loads(protocol.read_text())
 print(json.dumps(summary, indent=1))
 PY
 cat "$OUT/pixel_gpu_summary.json"

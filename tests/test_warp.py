@@ -1,4 +1,5 @@
-"""vector_env="warp": the batched vector env on MuJoCo Warp, tested on Warp's CPU device.
+"""vector_env="warp": the batched vector env on MuJoCo Warp, tested on Warp's CPU device
+(``GYM_SOARM_WARP_DEVICE=cuda`` runs the same tests on a GPU: its CUDA-graph path).
 
 Warp computes in float32, so a world is compared with C MuJoCo's float64 simulation of
 the same actions (the batched env on ``mujoco.batch``) within tolerances, never bit for
@@ -24,11 +25,12 @@ if not warp_available():
     pytest.skip('MuJoCo Warp: pip install "gym-soarm[warp]"', allow_module_level=True)
 
 N = 3
+DEVICE = os.environ.get("GYM_SOARM_WARP_DEVICE", "cpu")
 
 
 def _make(task: str, vector_env: str, **kwargs):
     if vector_env == "warp":
-        kwargs.setdefault("device", "cpu")
+        kwargs.setdefault("device", DEVICE)
     return gym.make_vec(
         f"gym_soarm/{task}",
         num_envs=N,
@@ -121,3 +123,43 @@ def test_bad_devices_and_settings_are_refused(kwargs, message):
 def test_a_device_without_warp_is_refused():
     with pytest.raises(ValueError, match="vector_env='warp'"):
         _make("LiftCube-v0", "batched", device="cpu")
+
+
+def test_the_warp_benchmark_reports_physics_env_and_batched_rates(tmp_path):
+    from gym_soarm.bench import bench_warp
+
+    out = tmp_path / "warp.json"
+    bench_warp.main(
+        [
+            "--worlds",
+            "2",
+            "--device",
+            "cpu",
+            "--seconds",
+            "0.2",
+            "--repeats",
+            "1",
+            "--batched-worlds-max",
+            "2",
+            "--json",
+            str(out),
+        ]
+    )
+    import json
+
+    report = json.loads(out.read_text())
+    (row,) = report["rows"]
+    assert row["worlds"] == 2 and row["physics"]["finite"]
+    for key in ("physics", "env", "batched"):
+        assert row[key]["rate"] > 0
+    assert row["env_to_physics"] == row["env"]["rate"] / row["physics"]["rate"]
+    assert "| 2 |" in bench_warp.format_table(report)
+
+
+@pytest.mark.parametrize("worlds", ["0", "a,b", ""])
+def test_the_warp_benchmark_refuses_bad_world_counts(worlds, capsys):
+    from gym_soarm.bench import bench_warp
+
+    with pytest.raises(SystemExit):
+        bench_warp.main(["--worlds", worlds, "--device", "cpu"])
+    assert "numbers of worlds" in capsys.readouterr().err

@@ -16,6 +16,9 @@ on Warp's CPU device (``device="cpu"``, slow but exact enough to test with).
   truncates every world that stepped with a warning, never a silent NaN.
 * The arrays the tasks read are host copies (NumPy) of the Warp arrays, made once a
   step; on Warp's CPU device they cost a copy of a few kB.
+* On a GPU a control step (its substeps and the closing position stage) is captured
+  once as a CUDA graph and replayed: one launch a step instead of a few hundred kernel
+  launches from Python.
 * Warp compiles its kernels on first use (about a minute on two CPU cores) and keeps
   them in its kernel cache (``~/.cache/warp/<version>``, or ``WARP_CACHE_PATH``); later
   processes load them in a second or two.
@@ -118,6 +121,7 @@ class WarpBackend:
                 njmax=CONSTRAINTS_PER_WORLD,
             )
         self._ctrl = np.zeros((n, model.nu))
+        self._graphs: dict[int, Any] = {}  # nstep -> the CUDA graph of a control step
         self._host: dict[str, np.ndarray] = {}
         self._staged: dict[str, np.ndarray] = {}  # loaded states not yet on the device
         self.set_models()
@@ -139,15 +143,18 @@ class WarpBackend:
     def step(self, ids: np.ndarray | None, nstep: int) -> dict[int, str]:
         """Step every world ``nstep`` times (the worlds outside ``ids`` are those that
         reset right after, so they step too: one launch for all)."""
-        wp, mjw = self._wp, self._mjw
+        wp = self._wp
         self._push()
         with wp.ScopedDevice(self.device):
             self._data.ctrl.assign(self._ctrl.astype(np.float32))
-            for _ in range(nstep):
-                mjw.step(self._model, self._data)
-            # Positions, velocities and their sensors of the new state (C MuJoCo's legacy
-            # step ends on mj_step1 too): the sites and contacts the tasks read.
-            mjw.step1(self._model, self._data)
+            if not wp.get_device(self.device).is_cuda:
+                self._control_step(nstep)
+            else:
+                if nstep not in self._graphs:
+                    with wp.ScopedCapture() as capture:
+                        self._control_step(nstep)
+                    self._graphs[nstep] = capture.graph
+                wp.capture_launch(self._graphs[nstep])
         self._read()
         reasons: dict[int, str] = {}
         overflow = self._overflow()
@@ -156,6 +163,13 @@ class WarpBackend:
             for i in rows:
                 reasons[i] = overflow
         return reasons
+
+    def _control_step(self, nstep: int) -> None:
+        for _ in range(nstep):
+            self._mjw.step(self._model, self._data)
+        # Positions, velocities and their sensors of the new state (C MuJoCo's legacy
+        # step ends on mj_step1 too): the sites and contacts the tasks read.
+        self._mjw.step1(self._model, self._data)
 
     def _overflow(self) -> str | None:
         """Why the step ran past the contact or constraint budget, or None."""
@@ -222,6 +236,7 @@ class WarpBackend:
     def close(self) -> None:
         """Release the worlds (every reference to the Warp arrays goes)."""
         self._model = self._data = None
+        self._graphs = {}
         self._host = {}
 
 
