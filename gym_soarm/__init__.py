@@ -47,6 +47,7 @@ from gym_soarm import compat  # noqa: E402
 compat.install()  # the programs' python -m names and the modules' earlier names
 
 from gym_soarm.envs.env import SoArmEnv  # noqa: E402
+from gym_soarm.envs.presets import TABLETOP_ID, register_presets  # noqa: E402
 from gym_soarm.envs.snapshot import Snapshot  # noqa: E402
 from gym_soarm.render.backend import GLBackendError  # noqa: E402
 from gym_soarm.render.display import DisplayUnavailableError  # noqa: E402
@@ -62,6 +63,8 @@ from gym_soarm.tasks import (  # noqa: E402
 
 __version__ = "0.7.0"
 
+register_presets()  # gym_soarm/SO101Tabletop-v0: LeRobot's tabletop contract
+
 
 def make_expert(env: Any, config: Any = None, kind: str = "state") -> Any:
     """The expert of ``env``'s task: the one that acts from the state unless
@@ -73,6 +76,7 @@ def make_expert(env: Any, config: Any = None, kind: str = "state") -> Any:
 
 __all__ = [
     "ENV_IDS",
+    "TABLETOP_ID",
     "DisplayUnavailableError",
     "GLBackendError",
     "MeshError",

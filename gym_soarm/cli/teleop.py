@@ -15,7 +15,6 @@ from typing import Any
 
 import gymnasium as gym
 
-from gym_soarm import constants
 from gym_soarm.cli.options import (
     add_settings_arguments,
     camera_config_argument,
@@ -213,7 +212,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ):
         if not 0.0 < value <= limit:
             parser.error(f"{flag} must be above 0 and at most {limit:g} {unit}; got {value}.")
-    speeds = TeleopSpeeds(args.speed, args.turn_speed, constants.CONTROL_TIMESTEP_S)
+    speeds = TeleopSpeeds(args.speed, args.turn_speed, 1.0 / settings.control_hz)
     if args.gamepad is not None:
         try:
             import_pygame()

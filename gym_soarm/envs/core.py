@@ -6,7 +6,8 @@ A control step of every environment of the package, the single
 
 1. the servo targets (the control mode's, after the servo chain:
    :class:`~gym_soarm.envs.control.ServoChain`) go to the backend;
-2. the backend advances the physics by :data:`~gym_soarm.constants.N_SUBSTEPS`;
+2. the backend advances the physics by the control rate's substeps (10 at 50 Hz,
+   :mod:`gym_soarm.sim.timing`);
 3. divergence: MuJoCo's own errors and warnings, then NaN/inf, an object thrown off the
    table, a joint turned past +-pi (:meth:`StepCore.divergence`);
 4. scoring on the arrays of every simulation: the task's evaluation, reward terms,
@@ -63,6 +64,8 @@ class StepCore:
         before_step: a task hook that sets one environment's targets itself (a task
             that overrides :meth:`~gym_soarm.tasks.base.Task.before_step`); None: the
             backend sets them.
+        substeps: physics steps a control step (the control rate's,
+            :class:`~gym_soarm.sim.timing.ControlTiming`).
     """
 
     def __init__(
@@ -71,8 +74,10 @@ class StepCore:
         backend: Backend,
         episode: dict[str, Any] | None = None,
         before_step: Callable[[np.ndarray], None] | None = None,
+        substeps: int = constants.N_SUBSTEPS,
     ) -> None:
         self.task = task
+        self.substeps = substeps
         self.backend = backend
         self.episode = episode
         self.state_observer = StateObservation(task)
@@ -107,7 +112,7 @@ class StepCore:
             self._before_step(targets)
         else:
             self.backend.set_targets(ids, targets)
-        reasons = self.backend.step(ids, constants.N_SUBSTEPS)
+        reasons = self.backend.step(ids, self.substeps)
         sim = self.arrays()
         diverged = self.divergence(sim, reasons, ids)
         if self._unbatched and diverged:
@@ -177,7 +182,8 @@ class StepCore:
 
         The dense reward is the task's weighted terms; the step that succeeds pays 1 plus
         1 for every step left to ``limit`` (what the rest of the episode could earn at
-        the most); a sparse reward is 1 on success, else 0.
+        the most) unless the task has no ``success_bonus``; a sparse reward is 1 on
+        success, else 0.
         """
         task = self.task
         evaluation = task.evaluate(sim)
@@ -186,7 +192,7 @@ class StepCore:
         if self._unbatched:
             if sparse:
                 reward = float(success)
-            elif success:
+            elif success and task.success_bonus:
                 reward = float(1 + max(limit - steps, 0))
             else:
                 reward = float(task.weights.total(terms))
@@ -196,9 +202,11 @@ class StepCore:
         if sparse.all():
             reward = success.astype(np.float64)
         else:
-            bonus = 1.0 + np.maximum(limit - np.asarray(steps), 0)
             dense = np.asarray(task.weights.total(terms), dtype=np.float64)
-            reward = np.where(sparse, success.astype(np.float64), np.where(success, bonus, dense))
+            if task.success_bonus:
+                bonus = 1.0 + np.maximum(limit - np.asarray(steps), 0)
+                dense = np.where(success, bonus, dense)
+            reward = np.where(sparse, success.astype(np.float64), dense)
         return evaluation, success, terms, reward
 
     # --- what the step reports -----------------------------------------------------------

@@ -32,6 +32,7 @@ from gym_soarm.sim.arrays import SimArrays, item
 from gym_soarm.sim.backends import MjDataBackend
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.sim.randomization import STS3215, Randomizer, Sts3215Servo
+from gym_soarm.sim.timing import DEFAULT_CONTROL_HZ, control_timing
 from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.base import Task, TaskSpec
 from gym_soarm.tasks.distractors import place_distractors, with_distractors
@@ -209,6 +210,7 @@ class SoArmEnv(gym.Env):
         calibration: str | os.PathLike[str] | None = None,
         dynamics: str | os.PathLike[str] | None = None,
         normalize_actions: bool = False,
+        control_hz: int = DEFAULT_CONTROL_HZ,
         settings: EnvSettings | None = None,
     ) -> None:
         keywords = _keywords(locals())
@@ -276,6 +278,11 @@ class SoArmEnv(gym.Env):
         if distractors:
             scene, label = with_distractors(scene, distractors), f"{spec.name}+{distractors}d"
         self._physics = SoArmPhysics.from_scene(scene, render_quality, label)
+        self.timing = control_timing(s.control_hz)
+        self._physics.model.opt.timestep = self.timing.timestep_s
+        self.control_hz = self.timing.control_hz
+        # Videos, datasets and windows show one frame a control step.
+        self.metadata = {**type(self).metadata, "render_fps": self.control_hz}
         self._scene_label = label
         self._task = task_logic
         self.task = spec.name
@@ -288,10 +295,13 @@ class SoArmEnv(gym.Env):
         self._servo: Sts3215Servo | None = None
         if servo_model == "sts3215":
             self._physics.set_servo_force_limit(STS3215.stall_torque_nm)
-            self._servo = Sts3215Servo(constants.CONTROL_TIMESTEP_S)
+            self._servo = Sts3215Servo(self.timing.control_timestep_s)
         if fitted is not None:  # before the randomiser saves the values it draws around
             apply_dynamics(self._physics.model.ptr, fitted.joints)
-        self._fitted_delay_steps = 0 if fitted is None else fitted.delay_steps
+        # A fitted delay is counted in the fit's 50 Hz steps: the same time at this rate.
+        self._fitted_delay_steps = (
+            0 if fitted is None else round(fitted.delay_steps * self.control_hz / 50)
+        )
         randomized = visual_randomization != "none" or physics_randomization != "none"
         self._randomizer = Randomizer(self._physics) if randomized else None
         self._report_variation = (
@@ -330,7 +340,7 @@ class SoArmEnv(gym.Env):
         hook = None
         if type(task_logic).before_step is not Task.before_step:
             hook = lambda targets: task_logic.before_step(targets, physics)  # noqa: E731
-        self._core = StepCore(task_logic, MjDataBackend(physics), None, hook)
+        self._core = StepCore(task_logic, MjDataBackend(physics), None, hook, self.timing.substeps)
         self.action_space = self._control.action_space
         self.observation_space = self._make_observation_space()
 
@@ -746,6 +756,11 @@ class SoArmEnv(gym.Env):
         if self._viewer is not None:
             self._viewer.show(info)
         return obs, result.reward, result.success, False, info
+
+    @property
+    def dt(self) -> float:
+        """One control step (s): ``1 / control_hz``."""
+        return self.timing.control_timestep_s
 
     @property
     def step_limit(self) -> int:

@@ -33,6 +33,7 @@ from gym_soarm.envs.control import CONTROL_MODES
 from gym_soarm.real.unit_maps import LEROBOT, UNITS, check_wrist_roll_offset
 from gym_soarm.render.backend import RENDER_QUALITIES
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
+from gym_soarm.sim.timing import DEFAULT_CONTROL_HZ, check_control_hz
 from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.distractors import MAX_DISTRACTORS
 from gym_soarm.validation import (
@@ -264,6 +265,13 @@ class EnvSettings:
         False,
         "True: actions in Box(-1, 1), mapped linearly onto the control mode's bounds",
         check_bool,
+    )
+    control_hz: int = _setting(
+        DEFAULT_CONTROL_HZ,
+        "control steps (and video/dataset frames) a second: 50, or 30 as LeRobot records; "
+        "one that whole physics steps fill (see gym_soarm.sim.timing)",
+        check_control_hz,
+        metavar="HZ",
     )
 
     def __post_init__(self) -> None:

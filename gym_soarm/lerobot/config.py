@@ -16,6 +16,7 @@ from gym_soarm.envs.control import CONTROL_MODES
 from gym_soarm.real.dynamics import load_dynamics
 from gym_soarm.real.units import UNITS, check_wrist_roll_offset, joint_units
 from gym_soarm.sim.randomization import LEVELS, SERVO_MODELS
+from gym_soarm.sim.timing import check_control_hz
 from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.tasks.distractors import MAX_DISTRACTORS
 from gym_soarm.tasks.suites import (
@@ -86,7 +87,8 @@ class SoArmEnvConfig(EnvConfig):
             ``"soarm_robust"``, ``"soarm_all"``) or a comma list of them. With
             ``obs_type="environment_state_agent_pos"`` every selected task must have the
             same state layout (one policy reads them all).
-        fps: control rate (the environment steps at 50 Hz).
+        fps: control rate: the environments step (``control_hz``) and their videos play
+            at it; 50 by default, 30 as LeRobot records real SO-101 arms.
         episode_length: step limit; ``None`` keeps the task's registered one.
         obs_type: ``"pixels_agent_pos"``, ``"environment_state_agent_pos"`` or ``"pixels"``.
         camera_config: ``"front_only"``, ``"front_wrist"``, ``"all"`` or comma-separated
@@ -174,6 +176,7 @@ class SoArmEnvConfig(EnvConfig):
                 item.variation.get("object_placement", self.object_placement)
             )
         self.distractors = check_int("distractors", self.distractors, 0, MAX_DISTRACTORS)
+        self.fps = check_control_hz("fps", self.fps)
         check_choice("control_mode", self.control_mode, CONTROL_MODES)
         check_choice("vector_env", self.vector_env, VECTOR_ENVS)
         if self.calibration is not None:  # reads and checks the file
@@ -226,6 +229,7 @@ class SoArmEnvConfig(EnvConfig):
             "object_placement": self.object_placement,
             "distractors": self.distractors,
             "control_mode": self.control_mode,
+            "control_hz": self.fps,
         }
         if self.episode_length is not None:
             kwargs["max_episode_steps"] = self.episode_length

@@ -30,11 +30,11 @@ from lerobot.robots.config import RobotConfig
 from lerobot.robots.robot import Robot
 from lerobot.utils.errors import DeviceAlreadyConnectedError, DeviceNotConnectedError
 
-from gym_soarm import constants
 from gym_soarm.envs.env import SoArmEnv
 from gym_soarm.lerobot.config import check_task
 from gym_soarm.real.units import FEATURE_NAMES, LEROBOT, UNITS, check_wrist_roll_offset
 from gym_soarm.render.backend import RENDER_QUALITIES
+from gym_soarm.sim.timing import check_control_hz
 from gym_soarm.tasks import DEFAULT_TASK
 from gym_soarm.validation import check_choice, check_image_size, parse_cameras
 
@@ -59,10 +59,11 @@ class SimSoArmFollowerConfig(RobotConfig):
             by LeRobot >= 0.4.4 sends), ``"lerobot_range"`` (-100 to 100) or ``"radians"``.
         wrist_roll_offset_deg: the leader's wrist_roll reading when the model's wrist_roll
             is at 0 rad (see :mod:`gym_soarm.real.units`).
-        steps_per_action: 20 ms simulation steps per action; 0 follows the wall clock
-            (the time since the previous action, 1 to 10 steps).
+        steps_per_action: control steps (of ``1 / control_hz`` s) per action; 0 follows
+            the wall clock (the time since the previous action, 1 to 10 steps).
         seed: seed of the scene's first reset (where the task's objects start); None draws one.
         render_quality: ``"fast"`` or ``"high"``.
+        control_hz: the simulation's control rate (50; 30 as LeRobot records).
     """
 
     task: str = DEFAULT_TASK
@@ -74,10 +75,12 @@ class SimSoArmFollowerConfig(RobotConfig):
     steps_per_action: int = 0
     seed: int | None = 0
     render_quality: str = "fast"
+    control_hz: int = 50
 
     def __post_init__(self) -> None:
         super().__post_init__()
         self.task = check_task(self.task)
+        self.control_hz = check_control_hz("control_hz", self.control_hz)
         if self.units not in UNITS:
             raise ValueError(f"units must be one of {', '.join(UNITS)}; got {self.units!r}.")
         self.wrist_roll_offset_deg = check_wrist_roll_offset(self.units, self.wrist_roll_offset_deg)
@@ -154,6 +157,7 @@ class SimSoArmFollower(Robot):
             render_quality=config.render_quality,
             units=config.units,
             wrist_roll_offset_deg=config.wrist_roll_offset_deg,
+            control_hz=config.control_hz,
         )
         try:
             self._start_scene(env, config.seed)
@@ -251,10 +255,8 @@ class SimSoArmFollower(Robot):
         if self._last_action_time is not None:
             self._unsimulated_s += now - self._last_action_time
         self._last_action_time = now
-        steps = int(self._unsimulated_s / constants.CONTROL_TIMESTEP_S)
+        dt = self._connected_env().dt
+        steps = int(self._unsimulated_s / dt)
         steps = min(max(steps, 1), MAX_STEPS_PER_ACTION)
-        self._unsimulated_s = min(
-            max(self._unsimulated_s - steps * constants.CONTROL_TIMESTEP_S, 0.0),
-            constants.CONTROL_TIMESTEP_S,
-        )
+        self._unsimulated_s = min(max(self._unsimulated_s - steps * dt, 0.0), dt)
         return steps

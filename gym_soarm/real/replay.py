@@ -21,11 +21,12 @@ convention need ``units="lerobot_range"``; a real arm's calibration file
 (``calibration``, see :mod:`gym_soarm.real.calibration`) and ``wrist_roll_offset_deg`` apply
 as in ``gym.make``.
 
-**Time.** The simulation steps at 50 Hz. At another frame rate each 20 ms step sends the
-action of the frame in force at the step's start (the follower, too, holds its last goal
-until the next), and the simulated joints are interpolated linearly to each recorded
-frame's time (``frame / fps``). At 50 fps every frame is one step and nothing is
-interpolated.
+**Time.** The simulation steps at its ``control_hz`` (50 by default; pass
+``control_hz=30`` for a 30 fps recording). At another frame rate each control step sends
+the action of the frame in force at the step's start (the follower, too, holds its last
+goal until the next), and the simulated joints are interpolated linearly to each recorded
+frame's time (``frame / fps``). When the rates agree every frame is one step and nothing
+is interpolated.
 
 **The scene.** :data:`REPLAY_TASK` by default: the arm and a target ball that collides
 with nothing, so no simulated object is in the way of a real arm's motion. A real
@@ -413,10 +414,11 @@ def start_episode(env: Any, state: np.ndarray, seed: int) -> None:
     physics.forward()
 
 
-def frame_of_steps(steps: int, frames: int, fps: float) -> np.ndarray:
-    """For each of ``steps`` 50 Hz steps, the frame whose action is in force at its start."""
+def frame_of_steps(steps: int, frames: int, fps: float, sim_fps: float = SIM_FPS) -> np.ndarray:
+    """For each of ``steps`` control steps (``sim_fps`` a second), the frame whose action
+    is in force at its start."""
     k = np.arange(steps)
-    return np.minimum((k * fps // SIM_FPS).astype(int), frames - 2)
+    return np.minimum((k * fps // sim_fps).astype(int), frames - 2)
 
 
 ARM_SETTINGS: tuple[str, ...] = ("dynamics", "servo_model")
@@ -589,18 +591,19 @@ def _replay_episode(
         )
     start_episode(env, states[0], seed)
     physics = env.physics
-    # Steps at 50 Hz until the last frame's time; each sends the frame in force then.
-    steps = math.ceil((frames - 1) * SIM_FPS / fps - 1e-9)
+    # Control steps until the last frame's time; each sends the frame in force then.
+    sim_fps = env.control_hz
+    steps = math.ceil((frames - 1) * sim_fps / fps - 1e-9)
     positions = np.empty((steps + 1, len(FEATURE_NAMES)))
     positions[0] = env.joint_units.from_radians(physics.joint_angles())
-    for k, frame in enumerate(frame_of_steps(steps, frames, fps)):
+    for k, frame in enumerate(frame_of_steps(steps, frames, fps, sim_fps)):
         obs, *_ = env.step(actions[frame].astype(np.float32))
         positions[k + 1] = obs["agent_pos"]
     times = np.arange(1, frames) / fps
-    if fps == SIM_FPS:
+    if fps == sim_fps:
         simulated = positions[1:frames]
     else:
-        sim_times = np.arange(steps + 1) / SIM_FPS
+        sim_times = np.arange(steps + 1) / sim_fps
         simulated = np.stack(
             [np.interp(times, sim_times, positions[:, j]) for j in range(positions.shape[1])],
             axis=1,

@@ -24,7 +24,8 @@ from gym_soarm.tasks.base import TaskSpec
 VARIATION_PATH = "meta/variation.jsonl"
 """Each kept episode's index, task, reset seed and what its reset drew (JSON lines)."""
 FPS = constants.RENDER_FPS
-"""Frames per second of a recording (the environment's control rate)."""
+"""Frames per second of a recording at the default control rate (a recording's frames
+are its environment's control steps: ``AttemptPlan.fps``)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -42,6 +43,11 @@ class AttemptPlan:
     wrist_roll_offset_deg: float
     cameras: tuple[str, ...]
     state_only: bool
+
+    @property
+    def fps(self) -> int:
+        """Frames per second: the environment's control rate (``control_hz``)."""
+        return int(self.env_kwargs.get("control_hz", FPS))
 
 
 def record_attempt(

@@ -36,7 +36,7 @@ from typing import Any
 
 from gym_soarm.data.format import SCRATCH_DIR
 from gym_soarm.data.writer import LeRobotDatasetWriter
-from gym_soarm.record.attempt import FPS, AttemptPlan, record_attempt, write_variation
+from gym_soarm.record.attempt import AttemptPlan, record_attempt, write_variation
 from gym_soarm.vector.workers import end_process, worker_context
 
 # How many times one attempt may take its worker down before the recording gives up.
@@ -90,7 +90,7 @@ class _Player:
         """Play ``attempt``: whether it succeeded, its shard (None: not kept), its draw."""
         if self.writer is None:  # made at the first attempt: an unused worker writes nothing
             self.writer = LeRobotDatasetWriter.create(
-                self.scratch, FPS, self.plan.features, robot_type=self.plan.robot_type,
+                self.scratch, self.plan.fps, self.plan.features, robot_type=self.plan.robot_type,
                 overwrite=True,
             )  # fmt: skip
         keep, success, drawn = self._record(self.writer, attempt)

@@ -24,7 +24,7 @@ from typing import Any
 
 from gym_soarm.data.format import SCRATCH_DIR
 from gym_soarm.data.writer import LeRobotDatasetWriter
-from gym_soarm.record.attempt import FPS, AttemptPlan, record_attempt
+from gym_soarm.record.attempt import AttemptPlan, record_attempt
 from gym_soarm.record.parallel import OrderedMerger
 
 # Times Ray runs a task again when its worker process dies.
@@ -79,7 +79,7 @@ def play_attempt(
             env=env,
             expert=make_expert(env),
             writer=LeRobotDatasetWriter.create(
-                scratch / "writer", FPS, plan.features, robot_type=plan.robot_type
+                scratch / "writer", plan.fps, plan.features, robot_type=plan.robot_type
             ),
         )
     state = _worker_state

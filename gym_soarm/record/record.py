@@ -46,7 +46,7 @@ from gym_soarm.data import LeRobotDatasetWriter
 from gym_soarm.envs.control import action_names
 from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.real.units import FEATURE_NAMES, joint_units
-from gym_soarm.record.attempt import FPS, AttemptPlan, record_attempt, write_variation
+from gym_soarm.record.attempt import AttemptPlan, record_attempt, write_variation
 from gym_soarm.tasks import get_task, lift_cube
 from gym_soarm.tasks.suites import distinct_tasks, resolve_selection, shared_state_names
 from gym_soarm.validation import ArgumentTypeError, check_int, parse_size, resolve_camera_config
@@ -429,7 +429,7 @@ def record(
     features = dataset_features(cameras, height, width, names, control_mode)
     plans = [dataclasses.replace(plan, features=features) for plan in plans]
     writer = LeRobotDatasetWriter.create(
-        root, FPS, features, robot_type=robot_type, overwrite=overwrite
+        root, settings.control_hz, features, robot_type=robot_type, overwrite=overwrite
     )
     write_recording_settings(root, settings)
     attempts = successes = 0

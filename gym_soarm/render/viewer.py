@@ -169,7 +169,7 @@ class HumanViewer:
     def _overlay_lines(self) -> list[tuple[str, tuple[int, int, int]]]:
         physics = self._env.physics
         sim_time_s = float(physics.data.time)
-        step = round(sim_time_s / constants.CONTROL_TIMESTEP_S)
+        step = round(sim_time_s / self._env.dt)
         success = "yes" if self._is_success else "no"
         colour = _OVERLAY_SUCCESS_BGR if self._is_success else _OVERLAY_TEXT_BGR
         return [

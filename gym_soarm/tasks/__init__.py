@@ -31,6 +31,7 @@ BUILTIN_TASK_MODULES: tuple[str, ...] = (
     "open_drawer",
     "pick_colored_cube",
     "sort_cubes",
+    "put_cubes_in_box",
 )
 """The built-in task modules, in the order the registry (and the README) lists them."""
 

@@ -102,6 +102,21 @@ class StateExpertConfig:
             ):
                 raise ValueError(f"{field.name} must be a number > 0; got {value!r}.")
 
+    def at_rate(self, control_hz: float) -> StateExpertConfig:
+        """The same motion in time at ``control_hz``: speeds a step scaled by 50 / hz,
+        changes of speed a step by its square (the figures are per 50 Hz step)."""
+        if control_hz == 50:
+            return self
+        k = 50.0 / control_hz
+        return dataclasses.replace(
+            self,
+            joint_speed_rad=self.joint_speed_rad * k,
+            joint_accel_rad=self.joint_accel_rad * k * k,
+            line_speed_m=self.line_speed_m * k,
+            carry_speed_m=self.carry_speed_m * k,
+            gripper_speed_rad=self.gripper_speed_rad * k,
+        )
+
 
 DEFAULT_STATE_CONFIG = StateExpertConfig()
 
@@ -144,7 +159,7 @@ class StateExpert:
 
     def __init__(self, env: gym.Env, config: StateExpertConfig = DEFAULT_STATE_CONFIG) -> None:
         self.env = env.unwrapped
-        self.config = config
+        self.config = config.at_rate(self.env.control_hz)
         self._control: ControlMode = self.env.control
         physics: SoArmPhysics = self.env.physics
         self._kinematics = ArmKinematics(physics.model.ptr)
@@ -313,7 +328,7 @@ class StateExpert:
         size = np.abs(error)
         if float(size.max()) <= 1e-9:
             return goal
-        speed = np.abs(self.physics.joint_velocities()[:_N_ARM]) * constants.CONTROL_TIMESTEP_S
+        speed = np.abs(self.physics.joint_velocities()[:_N_ARM]) * self.env.dt
         limit = np.minimum(c.joint_speed_rad, 2.0 * speed + c.joint_accel_rad)
         limit = np.minimum(limit, np.sqrt(2.0 * c.joint_accel_rad * size))
         limit = np.maximum(limit, np.minimum(size, c.joint_accel_rad))

@@ -123,14 +123,14 @@ class TeleopSession:
         self.episodes = check_int("episodes", episodes, 1)
         self.seed = check_int("seed", seed, 0)
         self.keep = check_choice("keep", keep, KEEP_CHOICES)
-        self.speeds = speeds or TeleopSpeeds(step_s=constants.CONTROL_TIMESTEP_S)
+        self.speeds = speeds or TeleopSpeeds(step_s=self.base.dt)
         self.gamepad = gamepad
         self._report = report or (lambda line: None)
         # The teleop's own ee_delta solver, in radians whatever the env's units.
         self._ee = make_control(EE_DELTA, self.base.physics, joint_units("radians"))
         self._keyboard = KeyboardInput()
         self._frame_period_s = 1.0 / float(self.base.metadata["render_fps"])
-        self._gripper_step_rad = GRIPPER_SPEED_RAD_S * constants.CONTROL_TIMESTEP_S
+        self._gripper_step_rad = GRIPPER_SPEED_RAD_S * self.base.dt
         self.summary = TeleopSummary()
         self._attempt = -1
         self._obs: Any = None

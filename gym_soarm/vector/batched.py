@@ -159,7 +159,7 @@ class BatchedVectorEnv(VectorEnv):
             raise
         self.settings = first.settings
         """Every environment's settings (:class:`gym_soarm.envs.settings.EnvSettings`)."""
-        self.metadata = dict(SoArmEnv.metadata)
+        self.metadata = dict(first.metadata)  # render_fps: the control rate
         self.metadata["autoreset_mode"] = self.autoreset_mode
         self.render_mode = first.render_mode
         self.single_action_space = first.action_space
@@ -186,7 +186,9 @@ class BatchedVectorEnv(VectorEnv):
             name: np.zeros((num_envs, *shape)) for name, shape in self._task.episode_shapes.items()
         }
         # The step, written once (gym_soarm.envs.core), over the whole batch.
-        self._core = StepCore(self._task, self._backend, self._episode)
+        self._core = StepCore(
+            self._task, self._backend, self._episode, substeps=first.timing.substeps
+        )
         self._sim = self._core.arrays()
         self._commanded = np.zeros((num_envs, len(constants.JOINT_NAMES)))
         self._steps = np.zeros(num_envs, dtype=np.int64)  # this episode's, as the env's

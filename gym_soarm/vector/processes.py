@@ -397,7 +397,7 @@ class SoArmVectorEnv(VectorEnv):
         first = SoArmEnv(**env_kwargs)
         self.settings = first.settings
         """Every environment's settings (:class:`gym_soarm.envs.settings.EnvSettings`)."""
-        self.metadata = dict(SoArmEnv.metadata)
+        self.metadata = dict(first.metadata)  # render_fps: the control rate
         self.metadata["autoreset_mode"] = self.autoreset_mode
         self.render_mode = first.render_mode
         self.single_action_space = first.action_space

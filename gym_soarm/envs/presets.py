@@ -1,0 +1,101 @@
+"""Presets: registered ids that apply a whole interface contract at once.
+
+``gym_soarm/SO101Tabletop-v0`` is LeRobot's SO-101 tabletop contract (Hugging Face's
+``so101-tabletop`` simulation and the real arm's datasets) over ``PutCubesInBox-v0``:
+
+* observations ``pixels.front`` and ``pixels.wrist``, 480 x 640 RGB, with ``agent_pos``;
+* actions six absolute joint targets in the follower's units (degrees, gripper 0-100);
+* 30 control steps (and frames) a second;
+* reward the fraction of the four cubes in the green box, ``info["cubes_in_box"]``.
+
+A policy trained on data in that contract (front and wrist images, 30 fps, follower
+units) runs on it unchanged. Keywords of ``gym.make`` change a setting (a smaller image,
+``render_mode``, randomisation); the camera keys stay ``front`` and ``wrist``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+from gymnasium import spaces
+
+from gym_soarm.envs.env import SoArmEnv
+
+TABLETOP_ID = "gym_soarm/SO101Tabletop-v0"
+TABLETOP_STEPS = 1200
+"""The preset's step limit: 40 s at 30 Hz."""
+TABLETOP_SETTINGS: dict[str, Any] = {
+    "task": "PutCubesInBox-v0",
+    "obs_type": "pixels_agent_pos",
+    "camera_config": ("front_camera", "wrist_camera"),
+    "observation_height": 480,
+    "observation_width": 640,
+    "units": "lerobot",
+    "control_mode": "joint_pos",
+    "control_hz": 30,
+}
+"""The contract as ``gym.make`` keywords."""
+PIXEL_KEYS: dict[str, str] = {"front_camera": "front", "wrist_camera": "wrist"}
+"""This package's camera names -> the contract's pixel keys."""
+
+
+class PixelKeys(gym.ObservationWrapper):
+    """Names the cameras of ``obs["pixels"]`` as ``keys`` maps them (other keys stay)."""
+
+    def __init__(self, env: gym.Env, keys: dict[str, str]) -> None:
+        super().__init__(env)
+        self.keys = dict(keys)
+        inner = env.observation_space["pixels"]
+        self.observation_space = spaces.Dict(
+            {
+                **env.observation_space.spaces,
+                "pixels": spaces.Dict(
+                    {self.keys.get(name, name): space for name, space in inner.spaces.items()}
+                ),
+            }
+        )
+
+    def observation(self, observation: dict[str, Any]) -> dict[str, Any]:
+        pixels = {self.keys.get(name, name): image for name, image in observation["pixels"].items()}
+        return {**observation, "pixels": pixels}
+
+
+def make_tabletop(**kwargs: Any) -> gym.Env:
+    """The tabletop contract (:data:`TABLETOP_SETTINGS`, keywords override); the entry
+    point of ``gym_soarm/SO101Tabletop-v0``.
+
+    Raises:
+        ValueError: a keyword that leaves the contract's observation layout (another
+            ``obs_type`` or cameras), or any keyword ``gym.make`` refuses.
+    """
+    for key in ("obs_type", "camera_config"):
+        value = kwargs.get(key, TABLETOP_SETTINGS[key])
+        if key == "camera_config" and isinstance(value, (list, tuple)):
+            value = tuple(value)
+        if value != TABLETOP_SETTINGS[key]:
+            raise ValueError(
+                f"{TABLETOP_ID} observes {TABLETOP_SETTINGS[key]!r} as its {key}; got "
+                f"{kwargs[key]!r}. Make gym_soarm/PutCubesInBox-v0 for other observations."
+            )
+    return PixelKeys(SoArmEnv(**{**TABLETOP_SETTINGS, **kwargs}), PIXEL_KEYS)
+
+
+def register_presets() -> None:
+    """Register the preset ids (once)."""
+    if TABLETOP_ID not in gym.registry:
+        gym.register(
+            id=TABLETOP_ID,
+            entry_point="gym_soarm.envs.presets:make_tabletop",
+            max_episode_steps=TABLETOP_STEPS,
+        )
+
+
+__all__ = [
+    "PIXEL_KEYS",
+    "TABLETOP_ID",
+    "TABLETOP_SETTINGS",
+    "PixelKeys",
+    "make_tabletop",
+    "register_presets",
+]
