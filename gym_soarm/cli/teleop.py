@@ -26,7 +26,6 @@ from gym_soarm.record.record import (
     CAMERA_CONFIG_CHOICES,
     CAMERA_CONFIG_NONE,
     DEFAULT_RECORD_TASK,
-    FPS,
     dataset_features,
     default_root,
     robot_type_for,
@@ -246,7 +245,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             robot_type = robot_type_for(settings.units)
             try:
                 writer = LeRobotDatasetWriter.create(
-                    root, FPS, features, robot_type=robot_type, overwrite=args.overwrite
+                    root,
+                    settings.control_hz,
+                    features,
+                    robot_type=robot_type,
+                    overwrite=args.overwrite,
                 )
             except (ValueError, FileExistsError, ImportError) as exc:
                 parser.error(str(exc))

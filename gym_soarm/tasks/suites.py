@@ -9,8 +9,9 @@ name, or a comma list of both (``"soarm_core,StackCube-v0"``).
 suite               tasks
 ==================  ======================================================================
 ``soarm_core``      ReachTarget, LiftCube, PickAndPlaceCube, PushCube: one object each
-``soarm_multi``     StackCube, PlaceInBin, SortCubes, PickAndPlaceCylinder, OpenDrawer:
-                    two or more objects, or an object and a fixture
+``soarm_multi``     StackCube, PlaceInBin, SortCubes, PickAndPlaceCylinder, OpenDrawer,
+                    PutCubesInBox (LeRobot's tabletop task): two or more objects, or an
+                    object and a fixture
 ``soarm_language``  PickColoredCube: the instruction names the object to pick
 ``soarm_robust``    the core tasks under ``visual_randomization="heavy"`` and
                     ``physics_randomization="light"``
@@ -82,8 +83,10 @@ _SUITES: dict[str, Suite] = {
                 "SortCubes-v0",
                 "PickAndPlaceCylinder-v0",
                 "OpenDrawer-v0",
+                "PutCubesInBox-v0",
             ),
-            summary="stack, bin, sort, cylinder, drawer: several objects, or an object and a fixture",
+            summary="stack, bin, sort, cylinder, drawer, four cubes in a box: several objects, "
+            "or an object and a fixture",
         ),
         Suite(
             "soarm_language",
