@@ -7,8 +7,8 @@ runs one pick-and-place episode (SoArm-v0) with the scripted expert and writes
     videos/front_camera_YYYYmmdd_HHMMSS.mp4
     videos/wrist_camera_YYYYmmdd_HHMMSS.mp4
 
-(H.264, yuv420p, 50 fps: they play in a browser). The first run renders with the
-``fast`` quality and takes about 10 s on two CPU cores without a GPU (plus about a
+(H.264, yuv420p, at the control rate, 50 fps by default: they play in a browser). The first
+run renders with the ``fast`` quality and takes about 10 s on two CPU cores without a GPU (plus about a
 second to build the meshes on a new machine); ``--quality high`` adds shadows and
 multisampling and takes about a minute and a half there. ``--task`` records any
 registered task (``--task StackCube-v0``). An episode ends half a second after
@@ -214,7 +214,7 @@ def main(argv: list[str] | None = None) -> int:
             suffix = f"_ep{episode + 1:02d}" if args.episodes > 1 else ""
             for name, camera_frames in frames.items():
                 path = args.output_dir / f"{name}_{stamp}{suffix}.mp4"
-                save_frames_to_mp4(camera_frames, path, fps=constants.RENDER_FPS)
+                save_frames_to_mp4(camera_frames, path, fps=env.metadata["render_fps"])
                 print(f"wrote {path} ({len(camera_frames)} frames)")
             if success_step is None:
                 print(f"episode {episode + 1}: not successful")
@@ -222,7 +222,7 @@ def main(argv: list[str] | None = None) -> int:
                 successes += 1
                 print(
                     f"episode {episode + 1}: success at step {success_step} "
-                    f"({success_step * constants.CONTROL_TIMESTEP_S:.2f} s)"
+                    f"({success_step * env.unwrapped.dt:.2f} s)"
                 )
     finally:
         env.close()

@@ -39,7 +39,7 @@ def test_short_benchmark_run_reports_every_field(tmp_path):
             "-m",
             "gym_soarm.bench",
             "--configs",
-            "state,front_only_64x48",
+            "state,state_30hz,front_only_64x48",
             "--seconds",
             "0.2",
             "--repeats",
@@ -56,6 +56,7 @@ def test_short_benchmark_run_reports_every_field(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "| state |" in proc.stdout and "| front_only_64x48 |" in proc.stdout
+    assert "| state_30hz |" in proc.stdout  # the benchmark reports both control rates
     assert "target state steps_per_s >= 4000" in proc.stdout
 
     report = json.loads(out.read_text())
@@ -79,8 +80,8 @@ def test_short_benchmark_run_reports_every_field(tmp_path):
         "repeats": 3,
         "processes": 2,
     }
-    state, pixels = report["configs"]
-    for result in (state, pixels):
+    state, state30, pixels = report["configs"]
+    for result in (state, state30, pixels):
         _check_spread(result["steps_per_s"], 3)
         _check_spread(result["ceiling"]["steps_per_s"], 3)
         _check_spread(result["vector"]["steps_per_s"], 3)
@@ -94,6 +95,8 @@ def test_short_benchmark_run_reports_every_field(tmp_path):
     assert state["name"] == "state" and state["obs_type"] == "environment_state_agent_pos"
     assert state["ms_per_step"]["render"] == 0
     assert state["ceiling"]["kind"] == "mujoco.mj_step x10"
+    # 30 Hz: twenty physics steps of 1/600 s a control step, against their own ceiling.
+    assert state30["name"] == "state_30hz" and state30["ceiling"]["kind"] == "mujoco.mj_step x20"
     assert pixels["render_quality"] == "fast" and pixels["camera_config"] == "front_only"
     assert (pixels["observation_width"], pixels["observation_height"]) == (64, 48)
     assert pixels["ms_per_step"]["render"] > 0

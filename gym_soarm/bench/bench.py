@@ -69,6 +69,7 @@ from gym_soarm.tasks import DEFAULT_TASK
 
 DEFAULT_CONFIGS: tuple[str, ...] = (
     "state",
+    "state_30hz",
     "front_only_640x480",
     "front_wrist_640x480",
     "all_640x480",
@@ -102,6 +103,7 @@ VECTOR_CAMERA_SPEEDUP_TARGET = 1.8  # the same with cameras
 VECTOR_TARGET_MIN_ENVS = 8  # the targets hold from this many environments
 DEFAULT_IMAGE_SIZE = (96, 128)  # (height, width) of --vector-obs and --recording-cameras
 
+_STATE_RATE_PATTERN = re.compile(r"^state_(\d+)hz$")
 _CONFIG_PATTERN = re.compile(r"^(front_only|front_wrist|all)_(\d+)x(\d+)(?:_(fast|high))?$")
 
 
@@ -137,6 +139,8 @@ class BenchConfig:
                 a bad or a reserved keyword.
         """
         config = cls._parse(name, task, control_mode)
+        named = dict(config.env)  # what the name sets (state_30hz: control_hz)
+        env = {k: v for k, v in dict(env or {}).items() if k not in named or named[k] != v}
         if not env:
             return config
         reserved = sorted(set(env) & {"task", "control_mode", *config.env_kwargs()})
@@ -148,7 +152,7 @@ class BenchConfig:
         from gym_soarm.envs.settings import EnvSettings
 
         EnvSettings.from_kwargs(task=config.task, **config.env_kwargs(), **env)  # checks
-        return dataclasses.replace(config, env=tuple(sorted(dict(env).items())))
+        return dataclasses.replace(config, env=tuple(sorted({**named, **env}.items())))
 
     @classmethod
     def _parse(cls, name: str, task: str, control_mode: str) -> BenchConfig:
@@ -162,10 +166,26 @@ class BenchConfig:
             return cls(
                 "state", "environment_state_agent_pos", None, 0, 0, "fast", task, control_mode
             )
+        rate = _STATE_RATE_PATTERN.match(name)
+        if rate is not None:  # state at another control rate: state_30hz
+            from gym_soarm.sim.timing import check_control_hz
+
+            hz = check_control_hz("the rate of " + name, int(rate.group(1)))
+            return cls(
+                name,
+                "environment_state_agent_pos",
+                None,
+                0,
+                0,
+                "fast",
+                task,
+                control_mode,
+                env=(("control_hz", hz),),
+            )
         match = _CONFIG_PATTERN.match(name)
         if match is None:
             raise ValueError(
-                f"unknown benchmark configuration {name!r}; expected 'state' or "
+                f"unknown benchmark configuration {name!r}; expected 'state', 'state_{{HZ}}hz' or "
                 "'{front_only|front_wrist|all}_{W}x{H}' with an optional '_fast' or '_high' "
                 f"suffix, e.g. {', '.join(DEFAULT_CONFIGS)}."
             )
@@ -248,7 +268,6 @@ def _env_worker(config: BenchConfig, model_out: str) -> None:
     import numpy as np
 
     import gym_soarm
-    from gym_soarm import constants
     from gym_soarm.render import backend, camera
     from gym_soarm.sim import cache
     from gym_soarm.sim import scene as model
@@ -320,7 +339,7 @@ def _env_worker(config: BenchConfig, model_out: str) -> None:
         "model_cache_hit": model_cache_hit,
         "first_reset_ms": first_reset_ms,
         "reset_ms": statistics.median(reset_times),
-        "substeps": constants.N_SUBSTEPS,
+        "substeps": env.unwrapped.timing.substeps,
         "episode_steps": env.spec.max_episode_steps,
         "camera_ids": [physics.model.name2id(c, "camera") for c in env.unwrapped.cameras],
         "state": {
