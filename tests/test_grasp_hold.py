@@ -7,11 +7,12 @@ import json
 import pytest
 
 from gym_soarm.bench import grasp_hold
+from gym_soarm.cli import grasp_hold as grasp_hold_cli
 
 
 def test_a_lift_and_carry_of_each_shape_is_measured(tmp_path):
     out = tmp_path / "hold.json"
-    grasp_hold.main(["--episodes", "3", "--seed", "0", "--json", str(out)])
+    grasp_hold_cli.main(["--episodes", "3", "--seed", "0", "--json", str(out)])
     report = json.loads(out.read_text())
     rows = report["rows"]
     assert [r["shape"] for r in rows] == ["cube", "cylinder", "block"]
@@ -48,5 +49,5 @@ def test_the_mass_is_set_on_the_object():
 
 def test_bad_episode_counts_are_refused(capsys):
     with pytest.raises(SystemExit):
-        grasp_hold.main(["--episodes", "0"])
+        grasp_hold_cli.main(["--episodes", "0"])
     assert "--episodes must be >= 1" in capsys.readouterr().err

@@ -122,6 +122,8 @@ BAD_VALUES = [
     ("calibration", 3, TypeError, "calibration must be the path of a LeRobot calibration JSON"),
     ("dynamics", "", TypeError, "dynamics must be the path of a gym_soarm.real.dynamics/1 JSON"),
     ("normalize_actions", 1, TypeError, "normalize_actions must be True or False"),
+    ("control_hz", 33, ValueError, "Rates that work: 1, 2, 3"),
+    ("control_hz", "30", TypeError, "control_hz must be a whole number"),
 ]
 
 
@@ -234,6 +236,7 @@ def samples(tmp_path: Path) -> dict[str, tuple[list[str], object]]:
         "calibration": (["--units", "lerobot", "--calibration", _calibration(tmp_path)], None),
         "dynamics": (["--dynamics", "fitted.json"], "fitted.json"),
         "normalize_actions": (["--normalize-actions"], True),
+        "control_hz": (["--control-hz", "30"], 30),
     }
 
 
@@ -339,6 +342,7 @@ PROGRAMS: dict[str, Program] = {
             "visual_randomization",  # a fit needs one model
             "physics_randomization",
             "dynamics",  # what is fitted
+            "control_hz",  # a fit steps at the model's own rate
         ),
     ),
     "expert": (expert_cli.build_parser, [], _expert, expert_cli.EXPERT_EXCLUDES),

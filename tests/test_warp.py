@@ -126,7 +126,7 @@ def test_a_device_without_warp_is_refused():
 
 
 def test_the_warp_benchmark_reports_physics_env_and_batched_rates(tmp_path):
-    from gym_soarm.bench import bench_warp
+    from gym_soarm.cli import bench_warp
 
     out = tmp_path / "warp.json"
     bench_warp.main(
@@ -153,12 +153,14 @@ def test_the_warp_benchmark_reports_physics_env_and_batched_rates(tmp_path):
     for key in ("physics", "env", "batched"):
         assert row[key]["rate"] > 0
     assert row["env_to_physics"] == row["env"]["rate"] / row["physics"]["rate"]
-    assert "| 2 |" in bench_warp.format_table(report)
+    from gym_soarm.bench.bench_warp import format_table
+
+    assert "| 2 |" in format_table(report)
 
 
 @pytest.mark.parametrize("worlds", ["0", "a,b", ""])
 def test_the_warp_benchmark_refuses_bad_world_counts(worlds, capsys):
-    from gym_soarm.bench import bench_warp
+    from gym_soarm.cli import bench_warp
 
     with pytest.raises(SystemExit):
         bench_warp.main(["--worlds", worlds, "--device", "cpu"])

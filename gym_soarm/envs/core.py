@@ -182,8 +182,7 @@ class StepCore:
 
         The dense reward is the task's weighted terms; the step that succeeds pays 1 plus
         1 for every step left to ``limit`` (what the rest of the episode could earn at
-        the most) unless the task has no ``success_bonus``; a sparse reward is 1 on
-        success, else 0.
+        the most); a sparse reward is 1 on success, else 0.
         """
         task = self.task
         evaluation = task.evaluate(sim)
@@ -192,7 +191,7 @@ class StepCore:
         if self._unbatched:
             if sparse:
                 reward = float(success)
-            elif success and task.success_bonus:
+            elif success:
                 reward = float(1 + max(limit - steps, 0))
             else:
                 reward = float(task.weights.total(terms))
@@ -202,11 +201,9 @@ class StepCore:
         if sparse.all():
             reward = success.astype(np.float64)
         else:
+            bonus = 1.0 + np.maximum(limit - np.asarray(steps), 0)
             dense = np.asarray(task.weights.total(terms), dtype=np.float64)
-            if task.success_bonus:
-                bonus = 1.0 + np.maximum(limit - np.asarray(steps), 0)
-                dense = np.where(success, bonus, dense)
-            reward = np.where(sparse, success.astype(np.float64), dense)
+            reward = np.where(sparse, success.astype(np.float64), np.where(success, bonus, dense))
         return evaluation, success, terms, reward
 
     # --- what the step reports -----------------------------------------------------------

@@ -21,6 +21,7 @@ import gymnasium as gym
 from gymnasium import spaces
 
 from gym_soarm.envs.env import SoArmEnv
+from gym_soarm.tasks.put_cubes_in_box import COLOURS
 
 TABLETOP_ID = "gym_soarm/SO101Tabletop-v0"
 TABLETOP_STEPS = 1200
@@ -40,8 +41,11 @@ PIXEL_KEYS: dict[str, str] = {"front_camera": "front", "wrist_camera": "wrist"}
 """This package's camera names -> the contract's pixel keys."""
 
 
-class PixelKeys(gym.ObservationWrapper):
-    """Names the cameras of ``obs["pixels"]`` as ``keys`` maps them (other keys stay)."""
+class TabletopContract(gym.Wrapper):
+    """The contract's names and reward over a ``PutCubesInBox-v0`` environment: the
+    cameras of ``obs["pixels"]`` renamed as ``keys`` maps them, and the reward the
+    fraction of the cubes in the box (``info["cubes_in_box"] / 4``) on every step, the
+    last one too (the task itself adds its success bonus there)."""
 
     def __init__(self, env: gym.Env, keys: dict[str, str]) -> None:
         super().__init__(env)
@@ -57,8 +61,18 @@ class PixelKeys(gym.ObservationWrapper):
         )
 
     def observation(self, observation: dict[str, Any]) -> dict[str, Any]:
+        """``observation`` with the contract's camera keys."""
         pixels = {self.keys.get(name, name): image for name, image in observation["pixels"].items()}
         return {**observation, "pixels": pixels}
+
+    def reset(self, **kwargs: Any) -> tuple[dict[str, Any], dict[str, Any]]:
+        obs, info = self.env.reset(**kwargs)
+        return self.observation(obs), info
+
+    def step(self, action: Any) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        obs, _, terminated, truncated, info = self.env.step(action)
+        reward = float(info["cubes_in_box"]) / len(COLOURS)
+        return self.observation(obs), reward, terminated, truncated, info
 
 
 def make_tabletop(**kwargs: Any) -> gym.Env:
@@ -78,7 +92,7 @@ def make_tabletop(**kwargs: Any) -> gym.Env:
                 f"{TABLETOP_ID} observes {TABLETOP_SETTINGS[key]!r} as its {key}; got "
                 f"{kwargs[key]!r}. Make gym_soarm/PutCubesInBox-v0 for other observations."
             )
-    return PixelKeys(SoArmEnv(**{**TABLETOP_SETTINGS, **kwargs}), PIXEL_KEYS)
+    return TabletopContract(SoArmEnv(**{**TABLETOP_SETTINGS, **kwargs}), PIXEL_KEYS)
 
 
 def register_presets() -> None:
@@ -95,7 +109,7 @@ __all__ = [
     "PIXEL_KEYS",
     "TABLETOP_ID",
     "TABLETOP_SETTINGS",
-    "PixelKeys",
+    "TabletopContract",
     "make_tabletop",
     "register_presets",
 ]

@@ -40,8 +40,8 @@ Giving ``task`` replays every episode in that scene, episode ``k`` reset with
 
 **The recording's settings.** A gym_soarm recording stores the environment settings it
 was made with (``meta/gym_soarm.json``, see :class:`gym_soarm.envs.settings.EnvSettings`).
-The replay moves the arm as the recording did: with its ``dynamics`` and
-``servo_model`` (:data:`ARM_SETTINGS`); replaying each episode in its own task and seed
+The replay moves the arm as the recording did: with its ``dynamics``, ``servo_model``
+and ``control_hz`` (:data:`ARM_SETTINGS`); replaying each episode in its own task and seed
 it also takes the scene's randomisation, placement and distractors
 (:data:`SCENE_SETTINGS`), so every reset draws what the recording's drew. Arguments
 given win over the recording's.
@@ -421,8 +421,9 @@ def frame_of_steps(steps: int, frames: int, fps: float, sim_fps: float = SIM_FPS
     return np.minimum((k * fps // sim_fps).astype(int), frames - 2)
 
 
-ARM_SETTINGS: tuple[str, ...] = ("dynamics", "servo_model")
-"""Settings of a recording that replay and sysid take beside its units: how the arm moves."""
+ARM_SETTINGS: tuple[str, ...] = ("dynamics", "servo_model", "control_hz")
+"""Settings of a recording that replay and sysid take beside its units: how the arm moves
+(and how often it is told to)."""
 SCENE_SETTINGS: tuple[str, ...] = (
     "visual_randomization",
     "physics_randomization",

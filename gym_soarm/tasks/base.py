@@ -171,10 +171,6 @@ class Task:
     goal_pairs: ClassVar[tuple[tuple[str, str], ...]] = ()
     """(object, goal) position fields of :attr:`state_fields`: ``obs_type="state"`` adds
     the vector from each object to its goal (``("cube_pos", "goal_pos")``)."""
-    success_bonus: ClassVar[bool] = True
-    """Whether the dense reward of the step that succeeds is 1 plus 1 for every step left
-    (the default), or the weighted terms as on any other step (a task whose terms already
-    say how complete it is, as the tabletop task's fraction of cubes in the box)."""
     episode_shapes: ClassVar[Mapping[str, tuple[int, ...]]] = MappingProxyType({})
     """The values the task keeps per episode, by name, with their shape for one
     environment (``()`` for a number): its reset sets them and :meth:`evaluate` may

@@ -2,19 +2,22 @@
 
 The task of Hugging Face's SO-101 tabletop simulation, with its instruction "Put all the
 cubes in the green box.": four 3 cm, 20 g cubes (red, blue, yellow and purple) start
-anywhere in the reachable region on the table, at least 3 cm apart and 2 cm clear of the box,
+anywhere in the reachable region on the table, at least 2.5 cm apart and 2 cm clear of the box,
 out of the lane under the arm's home pose, with yaws in [0°, 90°). The green box is open
 (a 3 mm floor and four 4 mm walls round a 13 x 13 cm inside, its rim 2.5 cm above the
 table) and stands to the arm's right; each reset moves it by up to 1.5 cm across and
 2 cm along the table, and moves the front camera by up to 1 cm along each axis (the
 seeded offsets of the cubes, the box and the front camera).
 
-A cube is *in the box* when its whole footprint lies inside the box's inner walls, its
-centre is below the rim and neither jaw touches it. Success: all four in the box.
+A cube is *in the box* when its whole footprint lies inside the box's inner walls and its
+centre is below the rim. Success: all four in the box, released (neither jaw touches
+any of them).
 
-Reward: the fraction of the cubes in the box (``in_box``, 0, 0.25, ... 1), the reward
-of the tabletop task; no success bonus (``Task.success_bonus``). ``info["cubes_in_box"]``
-counts them.
+Reward terms: ``in_box``, the fraction of the cubes in the box (0, 0.25, ... 1; weight
+0.95), and ``released``, 1 once all four are in and out of the jaws (weight 0.05), so
+the reward stays under 1 until success, whose step pays 1 plus 1 for every step left as
+every task's does. The preset ``gym_soarm/SO101Tabletop-v0`` pays the plain fraction, as
+LeRobot's simulation does. ``info["cubes_in_box"]`` counts them.
 
 ``environment_state``: each cube's position and quaternion, the box's position and the
 gripper's position.
@@ -33,6 +36,7 @@ import numpy as np
 
 from gym_soarm import constants
 from gym_soarm.sim.arrays import Array, SimArrays
+from gym_soarm.sim.arrays import namespace as sim_namespace
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
@@ -107,10 +111,10 @@ BOX = Fixture(
 )
 """The open green box; its site is the centre of the floor's top."""
 
-START_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.17, 0.17), (0.21, 0.39))
+START_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.17, 0.17), (0.25, 0.40))
 """Where the cubes' centres start: ((x_min, x_max), (y_min, y_max)), clear of the box."""
 ARM_LANE_HALF_WIDTH_M = 0.045
-CUBE_GAP_M = 0.03
+CUBE_GAP_M = 0.025
 BOX_CLEARANCE_M = 0.02
 YAW_RANGE_DEG: tuple[float, float] = (0.0, 90.0)
 CARRY_RIM_CLEARANCE_M = 0.02
@@ -137,8 +141,7 @@ def slot_of(name: str) -> tuple[float, float]:
 class PutCubesInBoxTask(Task):
     """Put all four cubes in the box; reward the fraction in it."""
 
-    weights = RewardWeights({"in_box": 1.0})
-    success_bonus = False
+    weights = RewardWeights({"in_box": 0.95, "released": 0.05})
     state_fields: ClassVar = (
         *(field for colour in COLOURS for field in object_pose_fields(cube_name(colour))),
         fixture_position_field("box", BOX.name),
@@ -182,7 +185,7 @@ class PutCubesInBoxTask(Task):
         placement.set_down(physics, rng, CUBES, positions, YAW_RANGE_DEG)
 
     def _in_box(self, sim: SimArrays, name: str) -> Array:
-        """Cube ``name`` lies inside the inner walls, its centre below the rim, out of the jaws."""
+        """Cube ``name`` lies inside the inner walls, its centre below the rim."""
         xp = sim.xp
         offset = sim.object_position(name)[..., :2] - sim.fixture_position(BOX.name)[..., :2]
         q = sim.object_quaternion(name)
@@ -195,16 +198,19 @@ class PutCubesInBoxTask(Task):
             xp.abs(offset[..., 1]) + reach[1] <= BOX_INNER_HALF_M
         )
         height = sim.object_position(name)[..., 2] - constants.TABLE_TOP_Z_M
-        return inside & (height < BOX_RIM_Z_M) & ~sim.touched_by_jaws(name)
+        return inside & (height < BOX_RIM_Z_M)
 
     def evaluate(self, sim: SimArrays) -> Evaluation:
-        """``<colour>_in_box`` per cube and ``cubes_in_box``; success when all four are."""
+        """``<colour>_in_box`` per cube and ``cubes_in_box``; success when all four are,
+        out of the jaws."""
         xp = sim.xp
         flags = {colour: self._in_box(sim, cube_name(colour)) for colour in COLOURS}
         count = sum(xp.astype(flag, xp.int64) for flag in flags.values())
         success = flags[COLOURS[0]]
         for colour in COLOURS[1:]:
             success = success & flags[colour]
+        for colour in COLOURS:
+            success = success & ~sim.touched_by_jaws(cube_name(colour))
         return {
             "success": success,
             "cubes_in_box": count,
@@ -212,7 +218,9 @@ class PutCubesInBoxTask(Task):
         }
 
     def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
-        return {"in_box": evaluation["cubes_in_box"] / len(COLOURS)}
+        xp = sim_namespace(evaluation["success"])
+        fraction = evaluation["cubes_in_box"] / len(COLOURS)
+        return {"in_box": fraction, "released": xp.astype(evaluation["success"], fraction.dtype)}
 
     def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Any]:
         return {
@@ -222,9 +230,15 @@ class PutCubesInBoxTask(Task):
         }
 
     def outside(self, physics: SoArmPhysics) -> tuple[str, ...]:
-        """The cubes not in the box, in the expert's order."""
-        evaluation = self.evaluate(self.arrays(physics))
-        return tuple(cube_name(c) for c in COLOURS if not bool(evaluation[f"{c}_in_box"]))
+        """The cubes not yet put in the box (outside it, or in it but still in the jaws),
+        in the expert's order."""
+        sim = self.arrays(physics)
+        evaluation = self.evaluate(sim)
+        return tuple(
+            cube_name(c)
+            for c in COLOURS
+            if not bool(evaluation[f"{c}_in_box"]) or bool(sim.touched_by_jaws(cube_name(c)))
+        )
 
 
 def _drop_point(physics: SoArmPhysics, name: str) -> np.ndarray:

@@ -24,8 +24,6 @@ during the carry (median and 95th percentile; goal <= 2 mm), per shape and overa
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import statistics
 import time
@@ -213,25 +211,3 @@ def measure(episodes: int, seed: int = 0) -> dict[str, Any]:
         "rows": rows,
     }
     return report
-
-
-def main(argv: Sequence[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(
-        prog="python -m gym_soarm.bench.grasp_hold", description=__doc__.splitlines()[0]
-    )
-    parser.add_argument("--episodes", type=int, default=1000)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--json", help="write the report (with every episode) here")
-    args = parser.parse_args(argv)
-    if args.episodes < 1:
-        parser.error(f"--episodes must be >= 1; got {args.episodes}.")
-    report = measure(args.episodes, args.seed)
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(report, f, indent=1)
-    for name, summary in {"all": report["all"], **report["shapes"]}.items():
-        print(f"{name:9s} {format_summary(summary)}")
-
-
-if __name__ == "__main__":
-    main()
