@@ -45,10 +45,10 @@ task has one), ``"scripted"`` follows its timed script."""
 
 
 def make_expert(
-    env: gym.Env,
+    env: gym.Env | gym.vector.VectorEnv,
     config: ExpertConfig | StateExpertConfig | None = None,
     kind: str = "state",
-) -> ScriptedExpert | StateExpert:
+) -> ScriptedExpert | StateExpert | VectorExpert:
     """An expert for the task of ``env`` (what ``gym.make`` returns, or its env).
 
     The default, ``kind="state"``, is an expert that acts from the state: each call
@@ -58,8 +58,12 @@ def make_expert(
     visits. ``kind="scripted"`` is the timed script (minimum-jerk phases), which
     follows its plan from the reset on. A task without a state expert gets its script.
 
+    A vector env (``gym.make_vec``'s batched or Warp env, or a ``SyncVectorEnv`` of
+    gym_soarm environments) gets a :class:`VectorExpert`: the state expert of every
+    environment, one batch of actions a call.
+
     Args:
-        env: a gym_soarm environment, wrapped or not.
+        env: a gym_soarm environment, wrapped or not, or a vector env of them.
         config: the expert's figures: a :class:`StateExpertConfig` for ``"state"``, an
             :class:`ExpertConfig` for ``"scripted"`` (default: the expert's own).
         kind: ``"state"`` or ``"scripted"``.
@@ -71,8 +75,12 @@ def make_expert(
     Raises:
         TypeError: ``env`` is not a gym_soarm environment, or ``config`` is not the
             kind's config class.
-        ValueError: ``kind`` is not one of :data:`EXPERT_KINDS`.
+        ValueError: ``kind`` is not one of :data:`EXPERT_KINDS`, or a vector env's
+            ``kind`` is not ``"state"`` (a script follows one episode from its reset,
+            while a vector env resets its environments as they end).
     """
+    if isinstance(env, gym.vector.VectorEnv):
+        return VectorExpert(env, config, kind)
     base = getattr(env, "unwrapped", None)
     if not isinstance(base, SoArmEnv):
         raise ArgumentTypeError(
@@ -100,6 +108,60 @@ def make_expert(
     if spec.expert is None:
         raise ValueError(f"task {spec.name!r} has no scripted expert.")
     return spec.expert(env, config)
+
+
+class VectorExpert:
+    """The state expert of each environment of a vector env: ``expert(obs, info)`` is the
+    ``(num_envs, action_dim)`` batch of actions (float32) for the environments' states now.
+
+    The batched vector env (``vector_env="batched"`` or ``"warp"``) copies each world's
+    state into its environment first (:meth:`BatchedVectorEnv.synced_envs
+    <gym_soarm.vector.batched.BatchedVectorEnv.synced_envs>`); a ``SyncVectorEnv`` of
+    gym_soarm environments needs nothing. A state expert keeps nothing from one step to
+    the next, so the vector env's automatic resets need no call to :meth:`reset`.
+
+    Raises:
+        TypeError: a vector env whose environments live in other processes (the native
+            process env, ``AsyncVectorEnv``): their states are not here to read.
+        ValueError: ``kind`` is not ``"state"``, or a task has no state expert.
+    """
+
+    def __init__(
+        self,
+        vector_env: gym.vector.VectorEnv,
+        config: StateExpertConfig | None = None,
+        kind: str = "state",
+    ) -> None:
+        check_choice("kind", kind, EXPERT_KINDS)
+        if kind != "state":
+            raise ValueError(
+                f"a vector env's expert acts from the state; got kind={kind!r}. The timed "
+                "script follows one episode from its reset: use it with a single env."
+            )
+        envs = getattr(vector_env.unwrapped, "envs", None)
+        if envs is None:
+            raise ArgumentTypeError(
+                "make_expert needs the environments of a vector env in this process: "
+                "gym.make_vec(..., vectorization_mode='vector_entry_point', "
+                "vector_env='batched' or 'warp'), or a SyncVectorEnv; got "
+                f"{type(vector_env.unwrapped).__name__}."
+            )
+        self.vector_env = vector_env.unwrapped
+        self._sync = getattr(self.vector_env, "synced_envs", None)
+        self.experts = []
+        for env in envs:
+            spec = env.unwrapped.task_spec
+            if spec.state_expert is None:
+                raise ValueError(f"task {spec.name!r} has no state expert.")
+            self.experts.append(make_expert(env, config, "state"))
+
+    def reset(self) -> None:
+        """Nothing to reset (each environment's expert acts from its state)."""
+
+    def __call__(self, obs: Any = None, info: dict[str, Any] | None = None) -> np.ndarray:
+        if self._sync is not None:
+            self._sync()
+        return np.stack([expert(None, None) for expert in self.experts]).astype(np.float32)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -192,6 +254,7 @@ __all__ = [
     "ScriptedExpert",
     "StateExpert",
     "StateExpertConfig",
+    "VectorExpert",
     "evaluate",
     "evaluate_protocol",
     "evaluation_resets",

@@ -244,6 +244,13 @@ class BatchedVectorEnv(VectorEnv):
             self._in_batch[i] = False
         return env
 
+    def synced_envs(self) -> tuple[SoArmEnv, ...]:
+        """Every environment with its world's state now (copied from the batch where it
+        stepped since): to read (an expert, an observer). A change made to one directly
+        is not copied back into the batch: change a simulation through :meth:`call`."""
+        self._check_open()
+        return tuple(self._unload(i) for i in range(self.num_envs))
+
     # --- Gymnasium API -------------------------------------------------------------------
     def reset(
         self,
