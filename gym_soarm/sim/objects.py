@@ -148,6 +148,32 @@ class FixtureGeom:
         object.__setattr__(self, "position_m", _vector("position_m", self.position_m))
 
 
+def open_box_geoms(
+    inner_half_m: float, wall_m: float, floor_m: float, rim_z_m: float, colour: str
+) -> tuple[FixtureGeom, ...]:
+    """An open box standing on the table, in its own frame (origin: the floor plate's
+    underside): a floor plate of ``floor_m`` and four walls of ``wall_m`` round a square
+    inside of ``2 * inner_half_m``, their tops ``rim_z_m`` above the table."""
+    outer = inner_half_m + wall_m
+    half_height = (rim_z_m - floor_m) / 2
+    z = floor_m + half_height
+    offset = inner_half_m + wall_m / 2
+    floor = FixtureGeom("box", (outer, outer, floor_m / 2), colour, (0.0, 0.0, floor_m / 2))
+    # The walls along y span the full outer width; those along x fit between them.
+    along_x = (wall_m / 2, outer, half_height)
+    along_y = (inner_half_m, wall_m / 2, half_height)
+    walls = tuple(
+        FixtureGeom("box", size, colour, position, emission=0.1)
+        for size, position in (
+            (along_x, (offset, 0.0, z)),
+            (along_x, (-offset, 0.0, z)),
+            (along_y, (0.0, offset, z)),
+            (along_y, (0.0, -offset, z)),
+        )
+    )
+    return (floor, *walls)
+
+
 @dataclasses.dataclass(frozen=True)
 class FixtureJoint:
     """The one joint of a moving fixture (a drawer slides, a lid hinges).

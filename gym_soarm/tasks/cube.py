@@ -41,6 +41,38 @@ CUBE = SceneObject(
 )
 """The 3 cm, 20 g blue cube."""
 
+
+def coloured_cubes(
+    colours: Sequence[str], first_x_m: float, step_m: float, y_m: float
+) -> tuple[SceneObject, ...]:
+    """One 3 cm, 20 g cube of each colour, named ``<colour>_cube``, declared in a row
+    along x (the resets place them)."""
+    return tuple(
+        SceneObject(
+            name=f"{colour}_cube",
+            shape="box",
+            size_m=(CUBE_HALF_M, CUBE_HALF_M, CUBE_HALF_M),
+            colour=colour,
+            mass_kg=0.02,
+            position_m=(first_x_m + step_m * i, y_m),
+        )
+        for i, colour in enumerate(colours)
+    )
+
+
+def cube_reach(sim: SimArrays, name: str, half_m: float = CUBE_HALF_M) -> tuple[Any, Any, Any]:
+    """How far cube ``name`` reaches from its centre along world x, y and z (m, ``(n,)``
+    each): its half size through its rotation."""
+    xp = sim.xp
+    q = sim.object_quaternion(name)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    # Rows of the cube's rotation matrix.
+    r0 = (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y))
+    r1 = (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x))
+    r2 = (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
+    return tuple(half_m * (xp.abs(r[0]) + xp.abs(r[1]) + xp.abs(r[2])) for r in (r0, r1, r2))
+
+
 GRID_OPTION_KEYS: tuple[str, ...] = ("cube_grid_position", "cube_rotation_deg")
 """Reset options of the grid tasks: the start cell and the yaw of the cube."""
 

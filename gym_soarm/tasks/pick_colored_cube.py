@@ -40,24 +40,14 @@ from gym_soarm.tasks.base import (
     object_pose_fields,
     position_field,
 )
-from gym_soarm.tasks.cube import CUBE_HALF_M
+from gym_soarm.tasks.cube import coloured_cubes
 from gym_soarm.tasks.rewards import LIFT_HEIGHT_M, lift_progress, pick_terms, reach_distance
 from gym_soarm.tasks.scripted import LiftExpert
 from gym_soarm.tasks.state_expert import LiftStateExpert
 
 COLOURS: tuple[str, ...] = ("red", "green", "blue")
 """The cubes' colours, in declaration order; each cube is called ``<colour>_cube``."""
-CUBES: tuple[SceneObject, ...] = tuple(
-    SceneObject(
-        name=f"{colour}_cube",
-        shape="box",
-        size_m=(CUBE_HALF_M, CUBE_HALF_M, CUBE_HALF_M),
-        colour=colour,
-        mass_kg=0.02,
-        position_m=(-0.06 + 0.06 * i, 0.35),
-    )
-    for i, colour in enumerate(COLOURS)
-)
+CUBES: tuple[SceneObject, ...] = coloured_cubes(COLOURS, -0.06, 0.06, 0.35)
 CUBE_NAMES: tuple[str, ...] = tuple(cube.name for cube in CUBES)
 
 START_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.13, 0.13), (0.26, 0.40))

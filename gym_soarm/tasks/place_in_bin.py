@@ -29,7 +29,7 @@ from gym_soarm import constants
 from gym_soarm.sim.arrays import Array, SimArrays
 from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.kinematics import downward_rotation
-from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
+from gym_soarm.sim.objects import Fixture, Scene, open_box_geoms
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
@@ -41,7 +41,7 @@ from gym_soarm.tasks.base import (
     fixture_position_field,
     object_pose_fields,
 )
-from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M
+from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M, cube_reach
 from gym_soarm.tasks.rewards import (
     PLACE_MARGIN_M,
     RESTING_SPEED_M_S,
@@ -65,35 +65,12 @@ BIN_RIM_Z_M = 0.04
 """Height of the walls' top above the table."""
 BIN_COLOUR = "white"
 _OUTER_HALF_M = BIN_INNER_HALF_M + BIN_WALL_M
-_WALL_HALF_HEIGHT_M = (BIN_RIM_Z_M - BIN_FLOOR_M) / 2
-_WALL_Z_M = BIN_FLOOR_M + _WALL_HALF_HEIGHT_M
-_WALL_OFFSET_M = BIN_INNER_HALF_M + BIN_WALL_M / 2
-
-
-def _bin_geoms() -> tuple[FixtureGeom, ...]:
-    """The floor plate and the four walls, in the bin's frame."""
-    floor = FixtureGeom(
-        "box",
-        (_OUTER_HALF_M, _OUTER_HALF_M, BIN_FLOOR_M / 2),
-        BIN_COLOUR,
-        (0.0, 0.0, BIN_FLOOR_M / 2),
-    )
-    # The walls along y span the full outer width; those along x fit between them.
-    along_x = (BIN_WALL_M / 2, _OUTER_HALF_M, _WALL_HALF_HEIGHT_M)
-    along_y = (BIN_INNER_HALF_M, BIN_WALL_M / 2, _WALL_HALF_HEIGHT_M)
-    walls = (
-        FixtureGeom("box", along_x, BIN_COLOUR, (_WALL_OFFSET_M, 0.0, _WALL_Z_M), emission=0.1),
-        FixtureGeom("box", along_x, BIN_COLOUR, (-_WALL_OFFSET_M, 0.0, _WALL_Z_M), emission=0.1),
-        FixtureGeom("box", along_y, BIN_COLOUR, (0.0, _WALL_OFFSET_M, _WALL_Z_M), emission=0.1),
-        FixtureGeom("box", along_y, BIN_COLOUR, (0.0, -_WALL_OFFSET_M, _WALL_Z_M), emission=0.1),
-    )
-    return (floor, *walls)
 
 
 BIN = Fixture(
     name="bin",
     position_m=BIN_POSITION_M,
-    geoms=_bin_geoms(),
+    geoms=open_box_geoms(BIN_INNER_HALF_M, BIN_WALL_M, BIN_FLOOR_M, BIN_RIM_Z_M, BIN_COLOUR),
     site_m=(0.0, 0.0, BIN_FLOOR_M),
 )
 """The open box, fixed to the table; its site is the centre of the floor's top."""
@@ -152,15 +129,7 @@ class PlaceInBinTask(Task):
     def _in_bin(self, sim: SimArrays, offset: Array) -> Array:
         """The whole cube lies inside the bin's inner footprint, its top below the rim."""
         xp = sim.xp
-        q = sim.object_quaternion(self.cube)
-        w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-        # Rows of the cube's rotation matrix: its half extents along world x, y and z.
-        r0 = (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y))
-        r1 = (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x))
-        r2 = (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
-        reach_x = CUBE_HALF_M * (xp.abs(r0[0]) + xp.abs(r0[1]) + xp.abs(r0[2]))
-        reach_y = CUBE_HALF_M * (xp.abs(r1[0]) + xp.abs(r1[1]) + xp.abs(r1[2]))
-        reach_z = CUBE_HALF_M * (xp.abs(r2[0]) + xp.abs(r2[1]) + xp.abs(r2[2]))
+        reach_x, reach_y, reach_z = cube_reach(sim, self.cube)
         inside = (xp.abs(offset[..., 0]) + reach_x <= BIN_INNER_HALF_M) & (
             xp.abs(offset[..., 1]) + reach_y <= BIN_INNER_HALF_M
         )
@@ -203,6 +172,9 @@ class PlaceInBinTask(Task):
 class PlaceInBinExpert(PlaceExpert):
     """Lift the cube, carry it over the bin above the rim, lower it in, release and rise."""
 
+    rim_z_m: ClassVar[float] = BIN_RIM_Z_M
+    """The height of the walls the carried object passes over."""
+
     def place_target(self) -> np.ndarray:
         target = self.env.physics.fixture_position(BIN.name)
         target[2] += CUBE_HALF_M
@@ -215,7 +187,7 @@ class PlaceInBinExpert(PlaceExpert):
         # The held cube's bottom (and the jaw tips just above it) pass over the rim.
         carry = max(
             self.config.carry_height_m,
-            constants.TABLE_TOP_Z_M + BIN_RIM_Z_M + CARRY_RIM_CLEARANCE_M + CUBE_HALF_M,
+            constants.TABLE_TOP_Z_M + self.rim_z_m + CARRY_RIM_CLEARANCE_M + CUBE_HALF_M,
         )
         self._arc_move(self._site_target(np.array([target[0], target[1], carry])))
 
@@ -241,13 +213,16 @@ class PlaceInBinStateExpert(PlaceStateExpert):
     """From the state: grasp the cube, carry it over the bin above the rim, lower it in,
     let go with the jaws half open and rise."""
 
+    rim_z_m: ClassVar[float] = BIN_RIM_Z_M
+    """The height of the walls the carried object passes over."""
+
     def place_target(self, name: str) -> np.ndarray:
         target = self.physics.fixture_position(BIN.name)
         target[2] += CUBE_HALF_M
         return target
 
     def carry_height(self, target: np.ndarray) -> float:
-        rim = constants.TABLE_TOP_Z_M + BIN_RIM_Z_M + CARRY_RIM_CLEARANCE_M + CUBE_HALF_M
+        rim = constants.TABLE_TOP_Z_M + self.rim_z_m + CARRY_RIM_CLEARANCE_M + CUBE_HALF_M
         return max(self.config.carry_height_m, rim)
 
     def release_opening(self) -> float:

@@ -38,7 +38,7 @@ from gym_soarm import constants
 from gym_soarm.sim.arrays import Array, SimArrays
 from gym_soarm.sim.arrays import namespace as sim_namespace
 from gym_soarm.sim.kinematics import downward_rotation
-from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
+from gym_soarm.sim.objects import Fixture, Scene, SceneObject, open_box_geoms
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
@@ -50,9 +50,9 @@ from gym_soarm.tasks.base import (
     fixture_position_field,
     object_pose_fields,
 )
-from gym_soarm.tasks.cube import CUBE_HALF_M
-from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase, PlaceExpert
-from gym_soarm.tasks.state_expert import PlaceStateExpert
+from gym_soarm.tasks.cube import CUBE_HALF_M, coloured_cubes, cube_reach
+from gym_soarm.tasks.place_in_bin import PlaceInBinExpert, PlaceInBinStateExpert
+from gym_soarm.tasks.scripted import OneAfterAnother
 
 INSTRUCTION = "Put all the cubes in the green box."
 COLOURS: tuple[str, ...] = ("red", "blue", "yellow", "purple")
@@ -72,43 +72,14 @@ _OUTER_HALF_M = BOX_INNER_HALF_M + BOX_WALL_M
 SLOT_OFFSET_M = 0.03
 """The expert's drop points: the box centre +- this along x and y (one quarter a cube)."""
 
-CUBES: tuple[SceneObject, ...] = tuple(
-    SceneObject(
-        name=f"{colour}_cube",
-        shape="box",
-        size_m=(CUBE_HALF_M, CUBE_HALF_M, CUBE_HALF_M),
-        colour=colour,
-        mass_kg=0.02,
-        position_m=(-0.12 + 0.06 * i, 0.30),
-    )
-    for i, colour in enumerate(COLOURS)
-)
-
-
-def _box_geoms() -> tuple[FixtureGeom, ...]:
-    """The floor plate and the four walls, in the box's frame."""
-    half_height = (BOX_RIM_Z_M - BOX_FLOOR_M) / 2
-    z = BOX_FLOOR_M + half_height
-    offset = BOX_INNER_HALF_M + BOX_WALL_M / 2
-    floor = FixtureGeom(
-        "box", (_OUTER_HALF_M, _OUTER_HALF_M, BOX_FLOOR_M / 2), BOX_COLOUR, (0, 0, BOX_FLOOR_M / 2)
-    )
-    along_x = (BOX_WALL_M / 2, _OUTER_HALF_M, half_height)
-    along_y = (BOX_INNER_HALF_M, BOX_WALL_M / 2, half_height)
-    walls = tuple(
-        FixtureGeom("box", size, BOX_COLOUR, position, emission=0.1)
-        for size, position in (
-            (along_x, (offset, 0.0, z)),
-            (along_x, (-offset, 0.0, z)),
-            (along_y, (0.0, offset, z)),
-            (along_y, (0.0, -offset, z)),
-        )
-    )
-    return (floor, *walls)
+CUBES: tuple[SceneObject, ...] = coloured_cubes(COLOURS, -0.12, 0.06, 0.30)
 
 
 BOX = Fixture(
-    name="box", position_m=BOX_POSITION_M, geoms=_box_geoms(), site_m=(0.0, 0.0, BOX_FLOOR_M)
+    name="box",
+    position_m=BOX_POSITION_M,
+    geoms=open_box_geoms(BOX_INNER_HALF_M, BOX_WALL_M, BOX_FLOOR_M, BOX_RIM_Z_M, BOX_COLOUR),
+    site_m=(0.0, 0.0, BOX_FLOOR_M),
 )
 """The open green box; its site is the centre of the floor's top."""
 
@@ -118,8 +89,6 @@ ARM_LANE_HALF_WIDTH_M = 0.045
 CUBE_GAP_M = 0.025
 BOX_CLEARANCE_M = 0.02
 YAW_RANGE_DEG: tuple[float, float] = (0.0, 90.0)
-CARRY_RIM_CLEARANCE_M = 0.02
-RELEASE_GRIPPER_RAD = 0.4
 
 
 def cube_name(colour: str) -> str:
@@ -189,14 +158,9 @@ class PutCubesInBoxTask(Task):
         """Cube ``name`` lies inside the inner walls, its centre below the rim."""
         xp = sim.xp
         offset = sim.object_position(name)[..., :2] - sim.fixture_position(BOX.name)[..., :2]
-        q = sim.object_quaternion(name)
-        w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-        # Rows of the cube's rotation matrix: its half extents along world x and y.
-        r0 = (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y))
-        r1 = (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x))
-        reach = [CUBE_HALF_M * sum(xp.abs(v) for v in row) for row in (r0, r1)]
-        inside = (xp.abs(offset[..., 0]) + reach[0] <= BOX_INNER_HALF_M) & (
-            xp.abs(offset[..., 1]) + reach[1] <= BOX_INNER_HALF_M
+        reach_x, reach_y, _ = cube_reach(sim, name)
+        inside = (xp.abs(offset[..., 0]) + reach_x <= BOX_INNER_HALF_M) & (
+            xp.abs(offset[..., 1]) + reach_y <= BOX_INNER_HALF_M
         )
         height = sim.object_position(name)[..., 2] - constants.TABLE_TOP_Z_M
         return inside & (height < BOX_RIM_Z_M)
@@ -249,59 +213,18 @@ def _drop_point(physics: SoArmPhysics, name: str) -> np.ndarray:
     return np.array([box[0] + dx, box[1] + dy, box[2] + CUBE_HALF_M])
 
 
-def _carry_height(config_height: float) -> float:
-    rim = constants.TABLE_TOP_Z_M + BOX_RIM_Z_M + CARRY_RIM_CLEARANCE_M + CUBE_HALF_M
-    return max(config_height, rim)
-
-
-class PutCubesInBoxExpert(PlaceExpert):
+class PutCubesInBoxExpert(OneAfterAnother, PlaceInBinExpert):
     """The timed script: each cube outside the box in turn, picked and dropped on its
     quarter of the box floor; a ``next`` phase looks at the table after each retreat."""
 
-    def __init__(self, env: Any, config: ExpertConfig = DEFAULT_CONFIG) -> None:
-        super().__init__(env, config)
-        self._cube = cube_name(COLOURS[0])
+    rim_z_m = BOX_RIM_Z_M
+    objects = tuple(cube_name(colour) for colour in COLOURS)
 
-    def grasp_object(self) -> str:
-        return self._cube
+    def remaining(self) -> tuple[str, ...]:
+        return self.env.task_logic.outside(self.env.physics)
 
     def place_target(self) -> np.ndarray:
-        return _drop_point(self.env.physics, self._cube)
-
-    def reset(self) -> None:
-        outside = self.env.task_logic.outside(self.env.physics)
-        self._cube = outside[0] if outside else cube_name(COLOURS[0])
-        super().reset()
-
-    def _after_grasp_phases(self) -> list[Phase]:
-        return [*super()._after_grasp_phases(), Phase("next", 1, self._begin_next)]
-
-    def _begin_carry(self) -> None:
-        if not self._holding():
-            return
-        target = self.place_target()
-        carry = _carry_height(self.config.carry_height_m)
-        self._arc_move(self._site_target(np.array([target[0], target[1], carry])))
-
-    def _begin_release(self) -> None:
-        self._hold_arm()
-        self._gripper(min(RELEASE_GRIPPER_RAD, self.config.gripper_open_rad))
-
-    def _begin_retreat(self) -> None:
-        site, _ = self._kinematics.site_pose(self._command[: self._n_arm])
-        site[2] = max(self.config.retreat_height_m, site[2])
-        self._line_move(site, self._yaw)
-        self._gripper(min(RELEASE_GRIPPER_RAD, self.config.gripper_open_rad))
-
-    def _begin_next(self) -> None:
-        self._hold_arm()
-        outside = self.env.task_logic.outside(self.env.physics)
-        if not outside:
-            return
-        self._cube = outside[0]
-        self._regrasps = 0
-        self._plan[self._phase_index :] = [*self._grasp_phases(), *self._after_grasp_phases()]
-        self._begin_phase()
+        return _drop_point(self.env.physics, self._current)
 
 
 JAW_REACH_M: tuple[float, float] = (-0.015, 0.06)
@@ -311,10 +234,12 @@ JAW_CLEARANCE_M = 0.03
 """The distance from the open jaws' line within which another cube is in their way."""
 
 
-class PutCubesInBoxStateExpert(PlaceStateExpert):
+class PutCubesInBoxStateExpert(PlaceInBinStateExpert):
     """From the state: the first cube outside the box is picked, carried over the rim
     and let go on its own quarter of the floor; of a cube's four grasp yaws, those whose
     open jaws come down clear of the other cubes."""
+
+    rim_z_m = BOX_RIM_Z_M
 
     def grasp_yaws(self, name: str) -> list[float]:
         yaws = super().grasp_yaws(name)
@@ -342,12 +267,6 @@ class PutCubesInBoxStateExpert(PlaceStateExpert):
 
     def place_target(self, name: str) -> np.ndarray:
         return _drop_point(self.physics, name)
-
-    def carry_height(self, target: np.ndarray) -> float:
-        return _carry_height(self.config.carry_height_m)
-
-    def release_opening(self) -> float:
-        return min(RELEASE_GRIPPER_RAD, self.config.gripper_open_rad)
 
 
 SPEC = TaskSpec(

@@ -479,9 +479,13 @@ class PlaceExpert(ScriptedExpert):
         target[2] += self.config.place_clearance_m
         self._line_move(self._site_target(target), self._yaw)
 
+    def _release_opening(self) -> float:
+        """The gripper target that lets go."""
+        return self.config.gripper_open_rad
+
     def _begin_release(self) -> None:
         self._hold_arm()
-        self._gripper(self.config.gripper_open_rad)
+        self._gripper(self._release_opening())
 
     def _begin_retreat(self) -> None:
         site, _ = self._kinematics.site_pose(self._command[: self._n_arm])
@@ -490,3 +494,55 @@ class PlaceExpert(ScriptedExpert):
         target = site - self.config.fixed_jaw_clearance_m * 2.5 * closing_axis
         target[2] = max(self.config.retreat_height_m, site[2])
         self._line_move(target, self._yaw)
+
+
+class OneAfterAnother:
+    """A place expert's script for several objects, one after another (a mixin before a
+    :class:`PlaceExpert` in the bases).
+
+    After each retreat a ``next`` phase looks at the table again: it plans a new grasp
+    (approach, descend, close) and placement for the first object :meth:`remaining`
+    names, the same one again if its placement missed, or ends the script when none is
+    left. The retreat rises straight up with the jaws as released: the base retreat
+    slides sideways first, towards the objects still to place, and sets no gripper
+    motion of its own, so the release's would play again and pick the placed object
+    back up.
+    """
+
+    objects: tuple[str, ...] = ()
+    """Every object the script places (the first is worked on when none remains)."""
+
+    def __init__(self, env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> None:
+        super().__init__(env, config)  # type: ignore[call-arg]
+        self._current = self.objects[0]
+
+    def remaining(self) -> tuple[str, ...]:
+        """The objects still to place, in order."""
+        raise NotImplementedError
+
+    def grasp_object(self) -> str:
+        return self._current
+
+    def reset(self) -> None:
+        remaining = self.remaining()
+        self._current = remaining[0] if remaining else self.objects[0]
+        super().reset()  # type: ignore[misc]
+
+    def _after_grasp_phases(self) -> list[Phase]:
+        return [*super()._after_grasp_phases(), Phase("next", 1, self._begin_next)]  # type: ignore[misc]
+
+    def _begin_retreat(self) -> None:
+        site, _ = self._kinematics.site_pose(self._command[: self._n_arm])
+        site[2] = max(self.config.retreat_height_m, site[2])
+        self._line_move(site, self._yaw)
+        self._gripper(self._release_opening())
+
+    def _begin_next(self) -> None:
+        self._hold_arm()
+        remaining = self.remaining()
+        if not remaining:
+            return
+        self._current = remaining[0]
+        self._regrasps = 0
+        self._plan[self._phase_index :] = [*self._grasp_phases(), *self._after_grasp_phases()]
+        self._begin_phase()

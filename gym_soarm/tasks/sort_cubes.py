@@ -34,7 +34,6 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
-import gymnasium as gym
 import numpy as np
 
 from gym_soarm import constants
@@ -53,7 +52,7 @@ from gym_soarm.tasks.base import (
     fixture_position_field,
     object_pose_fields,
 )
-from gym_soarm.tasks.cube import CUBE_HALF_M
+from gym_soarm.tasks.cube import CUBE_HALF_M, coloured_cubes
 from gym_soarm.tasks.rewards import (
     PLACE_MARGIN_M,
     RESTING_SPEED_M_S,
@@ -61,7 +60,7 @@ from gym_soarm.tasks.rewards import (
     pick_and_place_terms,
     tolerance,
 )
-from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase, PlaceExpert
+from gym_soarm.tasks.scripted import OneAfterAnother, PlaceExpert
 from gym_soarm.tasks.state_expert import PlaceStateExpert
 
 COLOURS: tuple[str, ...] = ("red", "green", "blue")
@@ -74,17 +73,7 @@ PAD_POSITIONS_M: dict[str, tuple[float, float, float]] = {
 PAD_RADIUS_M = 0.04
 PAD_TOP_Z_M = 0.001
 
-CUBES: tuple[SceneObject, ...] = tuple(
-    SceneObject(
-        name=f"{colour}_cube",
-        shape="box",
-        size_m=(CUBE_HALF_M, CUBE_HALF_M, CUBE_HALF_M),
-        colour=colour,
-        mass_kg=0.02,
-        position_m=(-0.08 + 0.08 * i, 0.30),
-    )
-    for i, colour in enumerate(COLOURS)
-)
+CUBES: tuple[SceneObject, ...] = coloured_cubes(COLOURS, -0.08, 0.08, 0.30)
 PADS: tuple[Fixture, ...] = tuple(
     Fixture(
         name=f"{colour}_pad",
@@ -255,7 +244,7 @@ class SortCubesTask(Task):
         }
 
 
-class SortCubesExpert(PlaceExpert):
+class SortCubesExpert(OneAfterAnother, PlaceExpert):
     """Pick and place each unsorted cube onto its pad in turn, in :data:`COLOURS` order.
 
     After each retreat a ``next`` phase looks at the table again: it plans a new grasp
@@ -263,43 +252,15 @@ class SortCubesExpert(PlaceExpert):
     is the same cube again if its placement missed, or ends the script when all are sorted.
     """
 
-    def __init__(self, env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> None:
-        super().__init__(env, config)
-        self._colour = COLOURS[0]
+    objects = tuple(cube_name(colour) for colour in COLOURS)
 
-    def grasp_object(self) -> str:
-        return cube_name(self._colour)
+    def remaining(self) -> tuple[str, ...]:
+        return tuple(cube_name(c) for c in self.env.task_logic.unsorted(self.env.physics))
 
     def place_target(self) -> np.ndarray:
-        pad = self.env.physics.fixture_position(pad_name(self._colour))
+        colour = COLOURS[self.objects.index(self._current)]
+        pad = self.env.physics.fixture_position(pad_name(colour))
         return np.array([pad[0], pad[1], constants.TABLE_TOP_Z_M + CUBE_HALF_M])
-
-    def reset(self) -> None:
-        unsorted = self.env.task_logic.unsorted(self.env.physics)
-        self._colour = unsorted[0] if unsorted else COLOURS[0]
-        super().reset()
-
-    def _after_grasp_phases(self) -> list[Phase]:
-        return [*super()._after_grasp_phases(), Phase("next", 1, self._begin_next)]
-
-    def _begin_retreat(self) -> None:
-        # Straight up with the jaws open. The base retreat slides sideways first, which
-        # moves the jaws away from the next cube, and sets no gripper motion of its own, so
-        # the release's (closed to open) would play again and pick the placed cube back up.
-        site, _ = self._kinematics.site_pose(self._command[: self._n_arm])
-        site[2] = max(self.config.retreat_height_m, site[2])
-        self._line_move(site, self._yaw)
-        self._gripper(self.config.gripper_open_rad)
-
-    def _begin_next(self) -> None:
-        self._hold_arm()
-        unsorted = self.env.task_logic.unsorted(self.env.physics)
-        if not unsorted:
-            return
-        self._colour = unsorted[0]
-        self._regrasps = 0
-        self._plan[self._phase_index :] = [*self._grasp_phases(), *self._after_grasp_phases()]
-        self._begin_phase()
 
 
 class SortCubesStateExpert(PlaceStateExpert):
