@@ -42,6 +42,7 @@ from gym_soarm.tasks.base import (
     object_pose_fields,
 )
 from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M, cube_reach
+from gym_soarm.tasks.open_box import OverRimExpert, OverRimStateExpert
 from gym_soarm.tasks.rewards import (
     PLACE_MARGIN_M,
     RESTING_SPEED_M_S,
@@ -50,8 +51,6 @@ from gym_soarm.tasks.rewards import (
     pick_progress,
     tolerance,
 )
-from gym_soarm.tasks.scripted import PlaceExpert
-from gym_soarm.tasks.state_expert import PlaceStateExpert
 
 BIN_POSITION_M: tuple[float, float, float] = (0.15, 0.30, 0.0)
 """Where the bin stands: the centre of its floor plate's underside, on the table."""
@@ -82,10 +81,6 @@ BIN_CLEARANCE_M = 0.03
 START_YAW_DEG: tuple[float, float] = (0.0, 90.0)
 OVER_BIN_RADIUS_M = 0.02
 """A cube centre this close (horizontally) to the bin's centre counts as over the bin."""
-CARRY_RIM_CLEARANCE_M = 0.02
-"""Height of the held cube's bottom above the rim while carried."""
-RELEASE_GRIPPER_RAD = 0.4
-"""Gripper target for the release inside the bin: open enough to let go, clear of walls."""
 
 
 class PlaceInBinTask(Task):
@@ -169,34 +164,15 @@ class PlaceInBinTask(Task):
         }
 
 
-class PlaceInBinExpert(PlaceExpert):
+class PlaceInBinExpert(OverRimExpert):
     """Lift the cube, carry it over the bin above the rim, lower it in, release and rise."""
 
-    rim_z_m: ClassVar[float] = BIN_RIM_Z_M
-    """The height of the walls the carried object passes over."""
+    rim_z_m = BIN_RIM_Z_M
 
     def place_target(self) -> np.ndarray:
         target = self.env.physics.fixture_position(BIN.name)
         target[2] += CUBE_HALF_M
         return target
-
-    def _begin_carry(self) -> None:
-        if not self._holding():
-            return
-        target = self.place_target()
-        # The held cube's bottom (and the jaw tips just above it) pass over the rim.
-        carry = max(
-            self.config.carry_height_m,
-            constants.TABLE_TOP_Z_M + self.rim_z_m + CARRY_RIM_CLEARANCE_M + CUBE_HALF_M,
-        )
-        self._arc_move(self._site_target(np.array([target[0], target[1], carry])))
-
-    def _release_opening(self) -> float:
-        return min(RELEASE_GRIPPER_RAD, self.config.gripper_open_rad)
-
-    def _begin_release(self) -> None:
-        self._hold_arm()
-        self._gripper(self._release_opening())
 
     def _begin_retreat(self) -> None:
         # Slide the fixed jaw just off the cube's face (the half-open moving jaw stays clear
@@ -209,24 +185,16 @@ class PlaceInBinExpert(PlaceExpert):
         self._gripper(self._release_opening())
 
 
-class PlaceInBinStateExpert(PlaceStateExpert):
+class PlaceInBinStateExpert(OverRimStateExpert):
     """From the state: grasp the cube, carry it over the bin above the rim, lower it in,
     let go with the jaws half open and rise."""
 
-    rim_z_m: ClassVar[float] = BIN_RIM_Z_M
-    """The height of the walls the carried object passes over."""
+    rim_z_m = BIN_RIM_Z_M
 
     def place_target(self, name: str) -> np.ndarray:
         target = self.physics.fixture_position(BIN.name)
         target[2] += CUBE_HALF_M
         return target
-
-    def carry_height(self, target: np.ndarray) -> float:
-        rim = constants.TABLE_TOP_Z_M + self.rim_z_m + CARRY_RIM_CLEARANCE_M + CUBE_HALF_M
-        return max(self.config.carry_height_m, rim)
-
-    def release_opening(self) -> float:
-        return min(RELEASE_GRIPPER_RAD, self.config.gripper_open_rad)
 
 
 SPEC = TaskSpec(

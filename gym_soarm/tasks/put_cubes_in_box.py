@@ -51,7 +51,7 @@ from gym_soarm.tasks.base import (
     object_pose_fields,
 )
 from gym_soarm.tasks.cube import CUBE_HALF_M, coloured_cubes, cube_reach
-from gym_soarm.tasks.place_in_bin import PlaceInBinExpert, PlaceInBinStateExpert
+from gym_soarm.tasks.open_box import OverRimExpert, OverRimStateExpert
 from gym_soarm.tasks.scripted import OneAfterAnother
 
 INSTRUCTION = "Put all the cubes in the green box."
@@ -213,7 +213,7 @@ def _drop_point(physics: SoArmPhysics, name: str) -> np.ndarray:
     return np.array([box[0] + dx, box[1] + dy, box[2] + CUBE_HALF_M])
 
 
-class PutCubesInBoxExpert(OneAfterAnother, PlaceInBinExpert):
+class PutCubesInBoxExpert(OneAfterAnother, OverRimExpert):
     """The timed script: each cube outside the box in turn, picked and dropped on its
     quarter of the box floor; a ``next`` phase looks at the table after each retreat."""
 
@@ -234,7 +234,7 @@ JAW_CLEARANCE_M = 0.03
 """The distance from the open jaws' line within which another cube is in their way."""
 
 
-class PutCubesInBoxStateExpert(PlaceInBinStateExpert):
+class PutCubesInBoxStateExpert(OverRimStateExpert):
     """From the state: the first cube outside the box is picked, carried over the rim
     and let go on its own quarter of the floor; of a cube's four grasp yaws, those whose
     open jaws come down clear of the other cubes."""
