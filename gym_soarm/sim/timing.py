@@ -47,10 +47,6 @@ class ControlTiming:
         """One control step (s): ``env.unwrapped.dt``."""
         return self.substeps / self.physics_hz
 
-    def steps_of(self, seconds: float) -> int:
-        """The control steps nearest to ``seconds`` (at least one)."""
-        return max(1, round(seconds * self.control_hz))
-
 
 def control_rates(max_hz: int = MAX_CONTROL_HZ) -> tuple[int, ...]:
     """Every whole control rate up to ``max_hz`` that a physics rate divides."""

@@ -31,20 +31,14 @@ import numpy as np
 
 import gym_soarm  # noqa: F401  (registers the environments)
 from gym_soarm import constants
+from gym_soarm.bench.bench_vector import N_ACTIONS, calls_per_second, vector_rate
 
 DEFAULT_ENV_ID = "gym_soarm/LiftCube-v0"
 
 
-def _windows(step: Any, units_per_call: int, seconds: float, repeats: int) -> list[float]:
-    """``repeats`` rates (units/s) of calling ``step`` for ``seconds`` each."""
-    rates = []
-    for _ in range(repeats):
-        calls, start = 0, time.perf_counter()
-        while (elapsed := time.perf_counter() - start) < seconds:
-            step()
-            calls += 1
-        rates.append(calls * units_per_call / elapsed)
-    return rates
+def _rates(call: Callable[[int], Any], per_call: int, seconds: float, repeats: int) -> list[float]:
+    """``repeats`` rates (``per_call`` units a call) of ``call`` run for ``seconds`` each."""
+    return [per_call * calls_per_second(call, seconds) for _ in range(repeats)]
 
 
 def physics_rate(
@@ -92,7 +86,7 @@ def physics_rate(
 
         step()
         compile_s = time.perf_counter() - start
-        rates = _windows(step, worlds, seconds, repeats)
+        rates = _rates(lambda k: step(), worlds, seconds, repeats)
         finite = bool(np.isfinite(d.qpos.numpy()).all())
     env.close()
     return {
@@ -114,23 +108,13 @@ def env_rate(
     envs = gym.make_vec(env_id, num_envs=worlds, vectorization_mode="vector_entry_point", **kwargs)
     envs.reset(seed=0)
     build_s = time.perf_counter() - start
+    low, high = envs.single_action_space.low, envs.single_action_space.high
     rng = np.random.default_rng(0)
-    actions = [
-        rng.uniform(-1, 1, size=envs.action_space.shape).astype(np.float32) for _ in range(16)
-    ]
-    low, high = envs.action_space.low, envs.action_space.high
-    actions = [np.clip(a, low, high) for a in actions]
-    k = 0
-
-    def step() -> None:
-        nonlocal k
-        envs.step(actions[k % len(actions)])
-        k += 1
-
+    actions = rng.uniform(low, high, (N_ACTIONS, worlds, len(low))).astype(np.float32)
     start = time.perf_counter()
-    step()
+    envs.step(actions[0])
     first_step_s = time.perf_counter() - start
-    rates = _windows(step, worlds, seconds, repeats)
+    rates = [vector_rate(envs, actions, seconds) for _ in range(repeats)]
     envs.close()
     return {
         "rate": statistics.median(rates),
