@@ -280,7 +280,6 @@ class SoArmEnv(gym.Env):
         self._physics = SoArmPhysics.from_scene(scene, render_quality, label)
         self.timing = control_timing(s.control_hz)
         self._physics.model.opt.timestep = self.timing.timestep_s
-        self.control_hz = self.timing.control_hz
         # Videos, datasets and windows show one frame a control step.
         self.metadata = {**type(self).metadata, "render_fps": self.control_hz}
         self._scene_label = label
@@ -298,9 +297,12 @@ class SoArmEnv(gym.Env):
             self._servo = Sts3215Servo(self.timing.control_timestep_s)
         if fitted is not None:  # before the randomiser saves the values it draws around
             apply_dynamics(self._physics.model.ptr, fitted.joints)
-        # A fitted delay is counted in the fit's 50 Hz steps: the same time at this rate.
+        # A fitted delay is counted in steps of the rate fits run at (the default): the
+        # same time at this rate.
         self._fitted_delay_steps = (
-            0 if fitted is None else round(fitted.delay_steps * self.control_hz / 50)
+            0
+            if fitted is None
+            else round(fitted.delay_steps * self.control_hz / DEFAULT_CONTROL_HZ)
         )
         randomized = visual_randomization != "none" or physics_randomization != "none"
         self._randomizer = Randomizer(self._physics) if randomized else None
@@ -756,6 +758,11 @@ class SoArmEnv(gym.Env):
         if self._viewer is not None:
             self._viewer.show(info)
         return obs, result.reward, result.success, False, info
+
+    @property
+    def control_hz(self) -> int:
+        """Control steps a second (the ``control_hz`` setting)."""
+        return self.timing.control_hz
 
     @property
     def dt(self) -> float:

@@ -34,7 +34,7 @@ from gym_soarm.envs.env import SoArmEnv
 from gym_soarm.lerobot.config import check_task
 from gym_soarm.real.units import FEATURE_NAMES, LEROBOT, UNITS, check_wrist_roll_offset
 from gym_soarm.render.backend import RENDER_QUALITIES
-from gym_soarm.sim.timing import check_control_hz
+from gym_soarm.sim.timing import DEFAULT_CONTROL_HZ, check_control_hz
 from gym_soarm.tasks import DEFAULT_TASK
 from gym_soarm.validation import check_choice, check_image_size, parse_cameras
 
@@ -75,7 +75,7 @@ class SimSoArmFollowerConfig(RobotConfig):
     steps_per_action: int = 0
     seed: int | None = 0
     render_quality: str = "fast"
-    control_hz: int = 50
+    control_hz: int = DEFAULT_CONTROL_HZ
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -35,6 +35,7 @@ from gym_soarm import constants
 from gym_soarm.envs.control import ControlMode
 from gym_soarm.sim.kinematics import ArmKinematics, downward_rotation
 from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.sim.timing import DEFAULT_CONTROL_HZ
 
 _QUARTER_TURN_RAD = math.pi / 2
 _N_ARM = len(constants.ARM_JOINT_NAMES)
@@ -105,9 +106,9 @@ class StateExpertConfig:
     def at_rate(self, control_hz: float) -> StateExpertConfig:
         """The same motion in time at ``control_hz``: speeds a step scaled by 50 / hz,
         changes of speed a step by its square (the figures are per 50 Hz step)."""
-        if control_hz == 50:
+        if control_hz == DEFAULT_CONTROL_HZ:
             return self
-        k = 50.0 / control_hz
+        k = DEFAULT_CONTROL_HZ / control_hz
         return dataclasses.replace(
             self,
             joint_speed_rad=self.joint_speed_rad * k,
