@@ -496,9 +496,9 @@ class PlaceExpert(ScriptedExpert):
         self._line_move(target, self._yaw)
 
 
-class OneAfterAnother:
-    """A place expert's script for several objects, one after another (a mixin before a
-    :class:`PlaceExpert` in the bases).
+class OneAfterAnother(PlaceExpert):
+    """A place expert's script for several objects, one after another (before another
+    :class:`PlaceExpert` in the bases, it adds this to that one's placement).
 
     After each retreat a ``next`` phase looks at the table again: it plans a new grasp
     (approach, descend, close) and placement for the first object :meth:`remaining`
@@ -513,7 +513,7 @@ class OneAfterAnother:
     """Every object the script places (the first is worked on when none remains)."""
 
     def __init__(self, env: gym.Env, config: ExpertConfig = DEFAULT_CONFIG) -> None:
-        super().__init__(env, config)  # type: ignore[call-arg]
+        super().__init__(env, config)
         self._current = self.objects[0]
 
     def remaining(self) -> tuple[str, ...]:
@@ -526,10 +526,10 @@ class OneAfterAnother:
     def reset(self) -> None:
         remaining = self.remaining()
         self._current = remaining[0] if remaining else self.objects[0]
-        super().reset()  # type: ignore[misc]
+        super().reset()
 
     def _after_grasp_phases(self) -> list[Phase]:
-        return [*super()._after_grasp_phases(), Phase("next", 1, self._begin_next)]  # type: ignore[misc]
+        return [*super()._after_grasp_phases(), Phase("next", 1, self._begin_next)]
 
     def _begin_retreat(self) -> None:
         site, _ = self._kinematics.site_pose(self._command[: self._n_arm])

@@ -60,7 +60,7 @@ from gym_soarm.tasks.rewards import (
     pick_and_place_terms,
     tolerance,
 )
-from gym_soarm.tasks.scripted import OneAfterAnother, PlaceExpert
+from gym_soarm.tasks.scripted import OneAfterAnother
 from gym_soarm.tasks.state_expert import PlaceStateExpert
 
 COLOURS: tuple[str, ...] = ("red", "green", "blue")
@@ -244,7 +244,7 @@ class SortCubesTask(Task):
         }
 
 
-class SortCubesExpert(OneAfterAnother, PlaceExpert):
+class SortCubesExpert(OneAfterAnother):
     """Pick and place each unsorted cube onto its pad in turn, in :data:`COLOURS` order.
 
     After each retreat a ``next`` phase looks at the table again: it plans a new grasp
