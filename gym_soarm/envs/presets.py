@@ -22,12 +22,13 @@ from gymnasium import spaces
 
 from gym_soarm.envs.env import SoArmEnv
 from gym_soarm.tasks.put_cubes_in_box import COLOURS
+from gym_soarm.tasks.put_cubes_in_box import SPEC as TABLETOP_TASK
 
 TABLETOP_ID = "gym_soarm/SO101Tabletop-v0"
 TABLETOP_STEPS = 1200
 """The preset's step limit: 40 s at 30 Hz."""
 TABLETOP_SETTINGS: dict[str, Any] = {
-    "task": "PutCubesInBox-v0",
+    "task": TABLETOP_TASK.name,
     "obs_type": "pixels_agent_pos",
     "camera_config": ("front_camera", "wrist_camera"),
     "observation_height": 480,
@@ -90,7 +91,7 @@ def make_tabletop(**kwargs: Any) -> gym.Env:
         if value != TABLETOP_SETTINGS[key]:
             raise ValueError(
                 f"{TABLETOP_ID} observes {TABLETOP_SETTINGS[key]!r} as its {key}; got "
-                f"{kwargs[key]!r}. Make gym_soarm/PutCubesInBox-v0 for other observations."
+                f"{kwargs[key]!r}. Make {TABLETOP_TASK.env_id} for other observations."
             )
     return TabletopContract(SoArmEnv(**{**TABLETOP_SETTINGS, **kwargs}), PIXEL_KEYS)
 
