@@ -61,6 +61,8 @@ and the last command (six normalised absolute targets)."""
 RESIDUAL_SCALE = 0.05
 """The network's output times this is the change of the command (normalised units, about
 0.1 rad): outputs of order one for the expert's moves."""
+AUX_DIM_BOUND = 32
+"""At most this many auxiliary targets a step are counted in the memory bound."""
 STUDENT_CONTROL = "joint_pos"
 """The control mode a pixel student acts in (normalised absolute joint targets)."""
 
@@ -73,6 +75,31 @@ def proprioception(agent_pos: Any, previous: Any, command: Any) -> np.ndarray:
     return np.concatenate([pos, change, np.asarray(command, np.float32)], axis=-1)
 
 
+_NOT_TARGETS = frozenset({"is_success", "physics_unstable", "gripper_pos"})
+
+
+def privileged_targets(info: Mapping[str, Any]) -> np.ndarray:
+    """What the state expert reads, as the encoder's auxiliary targets (training only):
+    the jaws' position, every object's position relative to them (each 3-vector
+    ``*_pos`` of ``info``), the task's flags (``cube_lifted`` ...) and a cube's yaw as
+    (cos, sin) of four times it (a cube looks the same turned by 90 degrees)."""
+    gripper = np.asarray(info["gripper_pos"], np.float32)
+    parts = [gripper]
+    for key in sorted(info):
+        value = info[key]
+        if key in _NOT_TARGETS:
+            continue
+        if key.endswith("_pos") and np.shape(value) == (3,):
+            parts.append(np.asarray(value, np.float32) - gripper)
+        elif isinstance(value, (bool, np.bool_)):
+            parts.append(np.float32([value]))
+    yaw = info.get("cube_rotation_deg")
+    if isinstance(yaw, (int, float, np.floating)) and not isinstance(yaw, bool):
+        angle = np.deg2rad(4.0 * float(yaw))
+        parts.append(np.float32([np.cos(angle), np.sin(angle)]))
+    return np.concatenate(parts).astype(np.float32)
+
+
 def is_pixel_env(env_kwargs: Mapping[str, Any]) -> bool:
     """Whether ``gym.make`` keywords ask for camera observations."""
     return str(env_kwargs.get("obs_type", "state")).startswith("pixels")
@@ -83,7 +110,8 @@ def is_pixel_env(env_kwargs: Mapping[str, Any]) -> bool:
 
 class FrameStore:
     """Growable arrays of expert-labelled steps: uint8 frames per camera, the
-    proprioception (:func:`proprioception`), the expert's label, the executed action, the episode and the round of each step.
+    proprioception (:func:`proprioception`), the expert's label, the executed action, the
+    auxiliary targets (:func:`privileged_targets`), the episode and the round of each step.
 
     Capacity grows by doubling up to ``max_samples`` (a ValueError past it), so the
     memory held is at most :meth:`bytes_per_sample` times twice the samples stored.
@@ -97,8 +125,11 @@ class FrameStore:
         act_dim: int,
         max_samples: int,
         pos_dim: int = PROPRIO_DIM,
+        aux_dim: int = 0,
     ) -> None:
         self.cameras = tuple(cameras)
+        self.aux_dim = aux_dim
+        self.aux = np.zeros((0, aux_dim), np.float32)
         self.shape = (height, width, 3)
         self.act_dim = act_dim
         self.pos_dim = pos_dim
@@ -116,7 +147,7 @@ class FrameStore:
     @staticmethod
     def bytes_per_sample(n_cameras: int, height: int, width: int, act_dim: int = 6) -> int:
         """Bytes one stored step takes: its frames, proprioception, two actions, two ids."""
-        return n_cameras * height * width * 3 + 4 * (PROPRIO_DIM + 2 * act_dim) + 16
+        return n_cameras * height * width * 3 + 4 * (PROPRIO_DIM + 2 * act_dim + AUX_DIM_BOUND) + 16
 
     def __len__(self) -> int:
         return self.size
@@ -136,6 +167,7 @@ class FrameStore:
         self.proprio = grown(self.proprio, (self.pos_dim,), np.float32)
         self.labels = grown(self.labels, (self.act_dim,), np.float32)
         self.executed = grown(self.executed, (self.act_dim,), np.float32)
+        self.aux = grown(self.aux, (self.aux_dim,), np.float32)
         self.episode = grown(self.episode, (), np.int64)
         self.round = grown(self.round, (), np.int64)
         self._capacity = capacity
@@ -149,9 +181,10 @@ class FrameStore:
         executed: np.ndarray,
         episode: int,
         round_: int,
+        aux: np.ndarray | None = None,
     ) -> None:
         """Store one step (its images are copied); ``previous``: the last step's
-        ``agent_pos``, ``command``: the last action sent."""
+        ``agent_pos``, ``command``: the last action sent, ``aux``: its auxiliary targets."""
         if self.size == self._capacity:
             if self.size >= self.max_samples:
                 raise ValueError(
@@ -165,13 +198,15 @@ class FrameStore:
         self.proprio[i] = proprioception(obs["agent_pos"], previous, command)
         self.labels[i] = label
         self.executed[i] = executed
+        if self.aux_dim:
+            self.aux[i] = aux
         self.episode[i] = episode
         self.round[i] = round_
         self.size += 1
 
     def nbytes(self) -> int:
         """Bytes the arrays hold now (their capacity, not just the samples stored)."""
-        arrays = [*self.frames.values(), self.proprio, self.labels, self.executed]
+        arrays = [*self.frames.values(), self.proprio, self.labels, self.executed, self.aux]
         return sum(a.nbytes for a in arrays) + self.episode.nbytes + self.round.nbytes
 
 
@@ -185,11 +220,14 @@ def build_network(
     hidden: Sequence[int] = (256, 256),
     pos_dim: int = PROPRIO_DIM,
     downsample: int = 1,
+    aux_dim: int = 0,
 ) -> Any:
     """The student: an encoder per camera (convolutions, spatial softmax), the
     proprioception beside their keypoints, an MLP to the action. Its ``forward(images,
     proprio)`` takes a dict of float images (N, 3, H, W) in [0, 1] and the normalised
-    proprioception (N, 18)."""
+    proprioception (N, 18). With ``aux_dim`` > 0 a second head (``aux``) reads the
+    keypoints alone and answers the auxiliary targets of training
+    (:func:`privileged_targets`); acting never uses it."""
     import torch
     from torch import nn
 
@@ -230,10 +268,24 @@ def build_network(
                 width = units
             layers.append(nn.Linear(width, act_dim))
             self.head = nn.Sequential(*layers)
+            keypoints = 2 * channels[-1] * len(self.cameras)
+            self.aux = (
+                nn.Sequential(nn.Linear(keypoints, 128), nn.ReLU(), nn.Linear(128, aux_dim))
+                if aux_dim
+                else None
+            )
+
+        def encode(self, images: dict[str, torch.Tensor], pooled: bool = False) -> torch.Tensor:
+            """The keypoints of every camera; ``pooled``: the images are already averaged
+            down by ``downsample`` (training pools its data once)."""
+            skip = 1 if pooled and downsample > 1 else 0
+            return torch.cat([self.encoders[c][skip:](images[c] - 0.5) for c in self.cameras], 1)
+
+        def act_from(self, keypoints: torch.Tensor, proprio: torch.Tensor) -> torch.Tensor:
+            return self.head(torch.cat([keypoints, proprio], 1))
 
         def forward(self, images: dict[str, torch.Tensor], proprio: torch.Tensor) -> torch.Tensor:
-            features = [self.encoders[camera](images[camera] - 0.5) for camera in self.cameras]
-            return self.head(torch.cat([*features, proprio], 1))
+            return self.act_from(self.encode(images), proprio)
 
     return PixelNet()
 
@@ -339,6 +391,7 @@ class PixelPolicy:
             layout["channels"],
             layout["hidden"],
             downsample=layout.get("downsample", 1),
+            aux_dim=layout.get("aux_dim", 0),
         )
         net.load_state_dict(saved["weights"])
         net.to(device).eval()
@@ -429,6 +482,9 @@ def check_pixel_settings(algo: str, settings: dict[str, Any]) -> dict[str, Any]:
     params["shift_px"] = check_int("shift_px", params["shift_px"], 0)
     params["downsample"] = check_int("downsample", params["downsample"], 1, 8)
     params["max_memory_gb"] = check_number("max_memory_gb", params["max_memory_gb"], 0.0)
+    params["aux_weight"] = check_number("aux_weight", params.get("aux_weight", 0.0), 0.0)
+    if algo == "dagger":
+        params["patience"] = check_int("patience", params.get("patience", params["rounds"]), 1)
     if params["max_memory_gb"] == 0:
         raise ValueError("max_memory_gb must be a number > 0; got 0.")
     for key, size in (("channels", 4), ("hidden", None)):
@@ -494,6 +550,7 @@ __all__ = [
     "PixelPolicy",
     "build_network",
     "is_pixel_env",
+    "privileged_targets",
     "random_shift",
     "store_bound",
 ]

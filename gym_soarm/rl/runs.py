@@ -3,13 +3,18 @@ episodes' reset seeds and Ctrl-C handling (a run stops cleanly, keeping its chec
 
 from __future__ import annotations
 
+import csv
 import json
 import signal
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from gym_soarm import __version__
+from gym_soarm.rl.curves import write_curve_png
 from gym_soarm.validation import check_int, check_number
 
 CURVE_CSV = "curve.csv"
@@ -34,6 +39,52 @@ def training_seeds(seed: int, round_: int, episodes: int) -> list[int]:
     """The reset seeds of round ``round_``'s ``episodes`` training episodes."""
     base = SEED_STRIDE * (seed + 1) + ROUND_STRIDE * round_
     return [base + k for k in range(episodes)]
+
+
+def dart_noise(labels: np.ndarray, std: float, rng: np.random.Generator) -> np.ndarray:
+    """DART: the executed actions are the expert's ``labels`` plus Gaussian noise of
+    standard deviation ``std``, clipped to [-1, 1] (the labels themselves when 0)."""
+    if std <= 0:
+        return labels
+    noise = rng.normal(0.0, std, np.shape(labels)).astype(np.float32)
+    return np.clip(labels + noise, -1.0, 1.0).astype(np.float32)
+
+
+class Curve:
+    """A run's curve: one row an evaluation, rewritten to ``curve.csv`` and
+    ``curve.png`` in ``folder`` after each (the wall time counted from its making)."""
+
+    def __init__(self, folder: Path, title: str) -> None:
+        self.folder, self.title = Path(folder), title
+        self.rows: list[dict[str, Any]] = []
+        self.started = time.perf_counter()
+
+    def add(
+        self,
+        round_: int,
+        env_steps: int,
+        samples: int,
+        success_rate: float,
+        result: dict[str, Any],
+        episodes: int,
+    ) -> None:
+        """A row for round ``round_`` with ``score``'s ``result``; writes both files."""
+        self.rows.append(
+            {
+                "round": round_,
+                "env_steps": env_steps,
+                "samples": samples,
+                "wall_s": round(time.perf_counter() - self.started, 2),
+                "success_rate": success_rate,
+                "mean_return": round(result["mean_return"], 4),
+                "episodes": episodes,
+            }
+        )
+        with open(self.folder / CURVE_CSV, "w", newline="") as stream:
+            writer = csv.DictWriter(stream, fieldnames=CURVE_FIELDS)
+            writer.writeheader()
+            writer.writerows(self.rows)
+        write_curve_png(self.rows, self.folder / CURVE_PNG, self.title)
 
 
 def write_run_settings(path: Path, fields: dict[str, Any]) -> None:
