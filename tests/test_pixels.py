@@ -228,16 +228,38 @@ def test_pixel_policy_refuses_other_cameras_or_sizes_naming_both(dagger_lift):
 
 
 def test_interrupted_before_training_keeps_no_model_and_says_so(tmp_path):
-    # A stop flag that is already set: nothing is collected, nothing saved, no crash.
+    # A run folder whose Ctrl-C flag is already set: nothing is collected, nothing saved.
     from gym_soarm.rl.hyperparams import pixel_recipe
     from gym_soarm.rl.pixel_training import train_pixels
     from gym_soarm.rl.pixels import check_pixel_settings
+    from gym_soarm.rl.runs import RunFolder
     from gym_soarm.tasks import get_task
 
     settings = check_pixel_settings("bc", pixel_recipe("bc", "LiftCube-v0"))
-    steps, rate = train_pixels("bc", get_task("lift"), tmp_path, 0, settings, stop=lambda: True)
-    assert steps == 0 and rate is None
+    folder = RunFolder(tmp_path, "interrupted").prepare()
+    folder.stop.interrupted = True
+    result = train_pixels("bc", get_task("lift"), folder, 0, settings)
+    assert result.env_steps == 0 and result.success_rate is None and result.interrupted
     assert not (tmp_path / PIXEL_MODEL_FILE).exists()
+
+
+def test_privileged_targets_are_what_the_expert_reads_relative_to_the_jaws():
+    from gym_soarm.rl.pixels import privileged_targets
+
+    env = make_env("LiftCube-v0", {"obs_type": "state"})
+    try:
+        _, info = env.reset(seed=3, options={"cube_rotation_deg": 30.0})
+    finally:
+        env.close()
+    targets = privileged_targets(info)
+    gripper, cube = np.asarray(info["gripper_pos"]), np.asarray(info["cube_pos"])
+    # the jaws, the cube relative to them, then the yaw's (cos, sin) of four times it
+    assert targets.shape == (8,) and targets.dtype == np.float32
+    np.testing.assert_allclose(targets[:3], gripper, atol=1e-6)
+    np.testing.assert_allclose(targets[3:6], cube - gripper, atol=1e-6)
+    np.testing.assert_allclose(targets[6:], [np.cos(np.deg2rad(120)), np.sin(np.deg2rad(120))])
+    push = {"gripper_pos": np.zeros(3), "cube_pos": np.ones(3), "cube_lifted": True}
+    assert privileged_targets(push).tolist() == [0, 0, 0, 1, 1, 1, 1]
 
 
 # --------------------------------------------------------------------------- bad input

@@ -47,21 +47,19 @@ demonstrations, ``bc_coef`` decaying by ``bc_decay`` per update.
 from __future__ import annotations
 
 import copy
-import csv
 import dataclasses
 import logging
 import os
 import pickle
-import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from gym_soarm.envs.settings import merge_keywords
-from gym_soarm.expert import make_expert
-from gym_soarm.rl.curves import TrainResult, pyplot, write_curve_png
+from gym_soarm.rl.curves import TrainResult, pyplot
+from gym_soarm.rl.dagger import Gathering, ImitationTrainer
 from gym_soarm.rl.evaluation import (
     MODEL_FILE,
     NORMALIZE_FILE,
@@ -69,10 +67,9 @@ from gym_soarm.rl.evaluation import (
     SETTINGS_FILE,
     make_env,
     require_sb3,
-    score,
 )
 from gym_soarm.rl.hyperparams import IMITATION, pixel_recipe, recipe
-from gym_soarm.rl.pixel_training import train_pixels
+from gym_soarm.rl.pixel_training import PixelTrainer
 from gym_soarm.rl.pixels import (
     PIXEL_MODEL_FILE,
     PIXEL_OBS_TYPES,
@@ -80,17 +77,8 @@ from gym_soarm.rl.pixels import (
     is_pixel_env,
     store_bound,
 )
-from gym_soarm.rl.runs import (
-    CURVE_CSV,
-    CURVE_FIELDS,
-    CURVE_PNG,
-    StopOnInterrupt,
-    check_run_numbers,
-    training_seeds,
-    write_run_settings,
-)
+from gym_soarm.rl.runs import TRAINING_SEEDS, RunFolder, check_run_numbers, training_seeds
 from gym_soarm.tasks import get_task
-from gym_soarm.tasks.suites import EVAL_SEED
 from gym_soarm.validation import ArgumentTypeError, check_int
 
 logger = logging.getLogger(__name__)
@@ -141,102 +129,6 @@ class Dataset:
     def load(cls, path: str | os.PathLike[str]) -> Dataset:
         with np.load(path) as data:
             return cls(*(data[f.name] for f in dataclasses.fields(cls)))
-
-
-@dataclasses.dataclass
-class Collected:
-    """One call of :func:`collect`: its data, environment steps and successes."""
-
-    data: Dataset
-    env_steps: int
-    episodes: int
-    successes: int
-
-
-def collect(
-    envs: Sequence[Any],
-    experts: Sequence[Any],
-    seeds: Sequence[int],
-    rng: np.random.Generator,
-    dart_std: float = 0.0,
-    learner: Callable[[np.ndarray], np.ndarray] | None = None,
-    beta: float = 1.0,
-    round_: int = 0,
-    first_episode: int = 0,
-    stop: Callable[[], bool] | None = None,
-) -> Collected:
-    """Run one episode per seed on ``envs`` (stepped in lockstep, an expert each) and
-    record every step's observation with the expert's action as its label.
-
-    Each step executes, per environment, the expert's action plus DART noise (``N(0,
-    dart_std)``, clipped to [-1, 1]) with probability ``beta``, else ``learner``'s action
-    (``learner`` maps a batch of raw observations to actions; None: always the expert).
-    ``stop()`` true ends the collection early (the finished steps are kept).
-    """
-    pending = list(seeds)
-    n = len(envs)
-    slots: list[list[Any] | None] = [None] * n
-    obs_rows: list[np.ndarray] = []
-    label_rows: list[np.ndarray] = []
-    executed_rows: list[np.ndarray] = []
-    episode_rows: list[np.ndarray] = []
-    started = 0
-    finished = successes = steps = 0
-
-    def start(i: int) -> None:
-        nonlocal started
-        if not pending:
-            slots[i] = None
-            return
-        obs, info = envs[i].reset(seed=pending.pop(0))
-        experts[i].reset()
-        slots[i] = [obs, info, first_episode + started]
-        started += 1
-
-    for i in range(n):
-        start(i)
-    while any(slot is not None for slot in slots):
-        if stop is not None and stop():
-            break
-        active = [i for i in range(n) if slots[i] is not None]
-        obs = np.stack([slots[i][0] for i in active]).astype(np.float32)
-        labels = np.stack(
-            [np.asarray(experts[i](slots[i][0], slots[i][1]), np.float32) for i in active]
-        )
-        labels = np.clip(labels, -1.0, 1.0)
-        executed = labels
-        if dart_std > 0:
-            noise = rng.normal(0.0, dart_std, labels.shape).astype(np.float32)
-            executed = np.clip(labels + noise, -1.0, 1.0)
-        if learner is not None and beta < 1.0:
-            use_learner = rng.random(len(active)) >= beta
-            if use_learner.any():
-                executed = executed.copy()
-                executed[use_learner] = np.asarray(learner(obs[use_learner]), np.float32)
-        obs_rows.append(obs)
-        label_rows.append(labels)
-        executed_rows.append(np.asarray(executed, np.float32))
-        episode_rows.append(np.array([slots[i][2] for i in active], np.int64))
-        for j, i in enumerate(active):
-            obs_i, _, terminated, truncated, info = envs[i].step(executed[j])
-            steps += 1
-            if terminated or truncated:
-                finished += 1
-                successes += bool(info.get("is_success", False))
-                start(i)
-            else:
-                slots[i][0], slots[i][1] = obs_i, info
-    if obs_rows:
-        data = Dataset(
-            np.concatenate(obs_rows),
-            np.concatenate(label_rows),
-            np.concatenate(executed_rows),
-            np.concatenate(episode_rows),
-            np.full(sum(len(rows) for rows in obs_rows), round_, np.int64),
-        )
-    else:
-        data = Dataset.empty(envs[0].observation_space.shape[0], envs[0].action_space.shape[0])
-    return Collected(data, steps, finished, successes)
 
 
 # --------------------------------------------------------------------------- policy
@@ -439,227 +331,163 @@ def train_imitation(
             )
         settings["algo"].update(copy.deepcopy(hyperparams))
     settings = check_pixel_settings(algo, settings) if pixels else check_settings(algo, settings)
-    params = settings["algo"]
     out_path = Path(out)
     if out_path.exists() and not out_path.is_dir():
         raise ValueError(f"out must be a folder; {str(out_path)!r} is a file. Pass a new folder.")
-    sb3 = require_sb3()
+    require_sb3()
     pyplot()
     if pixels:
         store_bound(algo, spec, settings)  # a ValueError before the folder is made
-        return _train_pixel_student(algo, spec, out_path, seed, settings, device)
-    import torch
-    from stable_baselines3.common.vec_env import DummyVecEnv
+    folder = RunFolder(out_path, "").prepare(
+        (MODEL_FILE, NORMALIZE_FILE, DEMOS_FILE, PIXEL_MODEL_FILE)
+    )
+    trainer_class = PixelTrainer if pixels else StateTrainer
+    with folder:
+        return trainer_class(algo, spec, folder, seed, settings, device).run()
 
-    torch.set_num_threads(settings["torch_threads"])
-    env_kwargs = dict(settings["env"])
-    state: dict[str, Any] = {
-        "data": None,
-        "env_steps": 0,
-        "episodes": 0,
-        "normalizer": None,
-        "model_env": None,
-        "model": None,
-        "optimizer": None,
-        "rate": None,
-        "best": -1.0,
-    }
-    envs = [make_env(spec.name, env_kwargs) for _ in range(settings["n_envs"])]
-    try:
-        experts = [make_expert(env) for env in envs]
-        observation_names = list(envs[0].unwrapped.observation_names)
 
-        out_path.mkdir(parents=True, exist_ok=True)
-        for stale in (MODEL_FILE, NORMALIZE_FILE, DEMOS_FILE, CURVE_CSV, CURVE_PNG):
-            (out_path / stale).unlink(missing_ok=True)
-        title = f"{algo.upper() if algo == 'bc' else 'DAgger'} on {spec.name}, seed {seed}"
+class StateTrainer(ImitationTrainer):
+    """A state student (an SB3 ``MlpPolicy`` actor) of the task's state expert: the
+    DAgger loop of :class:`ImitationTrainer <gym_soarm.rl.dagger.ImitationTrainer>` with
+    the folder of the module's documentation."""
+
+    rng_stream = 22
+
+    def __init__(
+        self,
+        algo: str,
+        spec: Any,
+        folder: RunFolder,
+        seed: int,
+        settings: dict[str, Any],
+        device: str = "cpu",
+    ) -> None:
+        import torch
+
+        super().__init__(algo, spec, folder, seed, settings, device)
+        torch.set_num_threads(settings["torch_threads"])
+        self.generator = torch.Generator().manual_seed(seed)
+        self.title = f"{algo.upper() if algo == 'bc' else 'DAgger'} on {spec.name}, seed {seed}"
+        folder.title = self.title
+        self.data: Dataset | None = None
+        self._new: list[Dataset] = []
+        self.normalizer: Any = None
+        self.model_env: Any = None
+        self.model: Any = None
+        self.optimizer: Any = None
+
+    def run(self) -> TrainResult:
+        try:
+            return super().run()
+        finally:
+            if self.model_env is not None:
+                self.model_env.close()
+
+    def make_vector_env(self) -> Any:
+        venv = super().make_vector_env()
+        self.observation_names = list(venv.envs[0].unwrapped.observation_names)
+        obs_dim, act_dim = len(self.observation_names), venv.single_action_space.shape[0]
+        self.data = Dataset.empty(obs_dim, act_dim)
+        return venv
+
+    def dataset(self) -> Dataset:
+        """Every step stored (the steps of the last gathering joined once)."""
+        for part in self._new:
+            self.data = self.data.extend(part)
+        self._new = []
+        return self.data
+
+    def stored(self) -> int:
+        return len(self.data) + sum(len(part) for part in self._new)
+
+    def record(
+        self, run: Gathering, live: np.ndarray, labels: Any, executed: Any, round_: int
+    ) -> None:
+        obs = np.asarray(run.obs, np.float32)[live]
+        rounds = np.full(len(obs), round_, np.int64)
+        self._new.append(Dataset(obs, labels[live], executed[live], run.episode[live], rounds))
+
+    def normalized(self, obs: np.ndarray) -> np.ndarray:
+        if self.normalizer is None:
+            return np.asarray(obs, np.float32)
+        return np.asarray(self.normalizer.normalize_obs(obs), np.float32)
+
+    def learner(self, obs: np.ndarray) -> np.ndarray:
+        return self.model.predict(self.normalized(obs), deterministic=True)[0]
+
+    def student_actions(self, run: Gathering, mask: np.ndarray) -> np.ndarray:
+        return np.asarray(self.learner(np.asarray(run.obs, np.float32)[mask]), np.float32)
+
+    def policy(self) -> Any:
+        return lambda obs, info: self.learner(obs[None])[0]
+
+    def start_learning(self) -> None:
+        """The normaliser (statistics of the demonstrations) and the PPO model."""
+        import torch
+        from stable_baselines3 import PPO
+        from stable_baselines3.common.vec_env import DummyVecEnv
+
+        name, kwargs = self.spec.name, self.env_kwargs
 
         def env_factory() -> Any:
-            return make_env(spec.name, env_kwargs)
+            return make_env(name, kwargs)
 
-        rng = np.random.default_rng([seed, 22])
-        generator = torch.Generator().manual_seed(seed)
-        started = time.perf_counter()
-        rows: list[dict[str, Any]] = []
-        state["data"] = Dataset.empty(len(observation_names), envs[0].action_space.shape[0])
+        torch.manual_seed(self.seed)
+        if self.settings["normalize"]:
+            self.normalizer = make_normalizer(env_factory, self.dataset().obs)
+            self.model_env = self.normalizer
+        else:
+            self.model_env = DummyVecEnv([env_factory])
+        params = self.params
+        self.model = PPO(
+            "MlpPolicy", self.model_env, seed=self.seed, device="cpu", n_steps=64,
+            batch_size=64, learning_rate=params["learning_rate"],
+            policy_kwargs=torch_policy_kwargs(params["policy_kwargs"]),
+        )  # fmt: skip
+        self.optimizer = torch.optim.Adam(
+            actor_parameters(self.model.policy), lr=params["learning_rate"]
+        )
 
-        def write_settings() -> None:
-            write_run_settings(
-                out_path / SETTINGS_FILE,
-                {
-                    "format": POLICY_FORMAT,
-                    "algo": algo,
-                    "task": spec.name,
-                    "seed": seed,
-                    "steps": state["env_steps"],
-                    "env": env_kwargs,
-                    "observation_names": observation_names,
-                    "recipe": settings,
-                },
-            )
+    def fit(self, epochs: int) -> float:
+        data = self.dataset()
+        return fit(
+            self.model.policy, self.optimizer, self.normalized(data.obs), data.actions,
+            epochs, self.params["batch_size"], self.generator, self.stop,
+        )  # fmt: skip
 
-        write_settings()
+    def save(self) -> None:
+        if self.model is None:
+            return
+        self.model.save(self.out_path / MODEL_FILE)
+        if self.normalizer is not None:
+            save_normalizer(self.normalizer, self.out_path / NORMALIZE_FILE)
+        self.dataset().save(self.out_path / DEMOS_FILE)
+        self.write_settings()
 
-        def build(data: Dataset) -> None:
-            """The normaliser (statistics of the first data) and the PPO model."""
-            torch.manual_seed(seed)
-            if settings["normalize"]:
-                state["normalizer"] = make_normalizer(env_factory, data.obs)
-                model_env = state["normalizer"]
-            else:
-                model_env = DummyVecEnv([env_factory])
-            state["model_env"] = model_env
-            state["model"] = sb3.PPO(
-                "MlpPolicy",
-                model_env,
-                seed=seed,
-                device="cpu",
-                n_steps=64,
-                batch_size=64,
-                learning_rate=params["learning_rate"],
-                policy_kwargs=torch_policy_kwargs(params["policy_kwargs"]),
-            )
-            state["optimizer"] = torch.optim.Adam(
-                actor_parameters(state["model"].policy), lr=params["learning_rate"]
-            )
+    def after_evaluation(self) -> None:
+        self.dataset().save(self.out_path / DEMOS_FILE)
 
-        def normalized(obs: np.ndarray) -> np.ndarray:
-            if state["normalizer"] is None:
-                return np.asarray(obs, np.float32)
-            return np.asarray(state["normalizer"].normalize_obs(obs), np.float32)
+    def on_interrupt(self) -> None:
+        if self.model is None and self.stored():
+            self.start_learning()
+        self.save()
+        self.folder.write_curve()
 
-        def learner(obs: np.ndarray) -> np.ndarray:
-            return state["model"].predict(normalized(obs), deterministic=True)[0]
-
-        def save() -> None:
-            if state["model"] is None:
-                return
-            state["model"].save(out_path / MODEL_FILE)
-            if state["normalizer"] is not None:
-                save_normalizer(state["normalizer"], out_path / NORMALIZE_FILE)
-            state["data"].save(out_path / DEMOS_FILE)
-            write_settings()
-
-        def write_curve() -> None:
-            with open(out_path / CURVE_CSV, "w", newline="") as stream:
-                writer = csv.DictWriter(stream, fieldnames=CURVE_FIELDS)
-                writer.writeheader()
-                writer.writerows(rows)
-            if rows:
-                write_curve_png(rows, out_path / CURVE_PNG, title)
-
-        def train_on_data(epochs: int, stop: StopOnInterrupt) -> float:
-            data = state["data"]
-            return fit(
-                state["model"].policy,
-                state["optimizer"],
-                normalized(data.obs),
-                data.actions,
-                epochs,
-                params["batch_size"],
-                generator,
-                stop,
-            )
-
-        def evaluate(round_: int, loss: float) -> None:
-            wall = time.perf_counter() - started
-            result = score(
-                spec.name,
-                env_kwargs,
-                lambda obs, info: learner(obs[None])[0],
-                settings["eval_episodes"],
-                EVAL_SEED,
-            )
-            state["rate"] = result["success_rate"]
-            rows.append(
-                {
-                    "round": round_,
-                    "env_steps": state["env_steps"],
-                    "samples": len(state["data"]),
-                    "wall_s": round(wall, 2),
-                    "success_rate": result["success_rate"],
-                    "mean_return": round(result["mean_return"], 4),
-                    "episodes": settings["eval_episodes"],
-                }
-            )
-            if result["success_rate"] >= state["best"]:  # DAgger keeps its best round
-                state["best"] = result["success_rate"]
-                save()
-            else:
-                state["data"].save(out_path / DEMOS_FILE)
-                write_settings()
-            write_curve()
-            logger.info(
-                "%s: round %d, %d samples, loss %.4f, %.0f s, success %.0f %%",
-                title,
-                round_,
-                len(state["data"]),
-                loss,
-                wall,
-                100 * result["success_rate"],
-            )
-
-        def gather(round_: int, episodes: int, beta: float, stop: StopOnInterrupt) -> None:
-            got = collect(
-                envs,
-                experts,
-                training_seeds(seed, round_, episodes),
-                rng,
-                dart_std=params["dart_std"],
-                learner=None if state["model"] is None else learner,
-                beta=beta,
-                round_=round_,
-                first_episode=state["episodes"],
-                stop=stop,
-            )
-            state["data"] = state["data"].extend(got.data)
-            state["env_steps"] += got.env_steps
-            state["episodes"] += got.episodes
-            logger.info(
-                "%s: round %d, %d episodes (beta %.2f), the executed actions succeeded in %d",
-                title,
-                round_,
-                got.episodes,
-                beta,
-                got.successes,
-            )
-
-        rounds = params["rounds"] if algo == "dagger" else 0
-        with StopOnInterrupt() as stop:
-            gather(0, params["demos"], 1.0, stop)
-            if len(state["data"]):
-                build(state["data"])
-                loss = train_on_data(params["epochs"], stop)
-                if not stop():
-                    evaluate(0, loss)
-            for round_ in range(1, rounds + 1):
-                if stop():
-                    break
-                beta = params["beta0"] * params["beta_decay"] ** round_
-                gather(round_, params["episodes_per_round"], beta, stop)
-                if stop():
-                    break
-                loss = train_on_data(params["round_epochs"], stop)
-                if not stop():
-                    evaluate(round_, loss)
-            if stop():
-                logger.warning("%s: interrupted; the checkpoint and the curve are kept", title)
-                if state["model"] is None and len(state["data"]):
-                    build(state["data"])
-                save()
-                write_curve()
-    finally:
-        for env in envs:
-            env.close()
-        if state["model_env"] is not None:
-            state["model_env"].close()
-    return TrainResult(
-        out=out_path,
-        env_steps=int(state["env_steps"]),
-        wall_s=time.perf_counter() - started,
-        success_rate=state["rate"],
-        interrupted=stop.interrupted,
-    )
+    def write_settings(self) -> None:
+        self.folder.write_settings(
+            SETTINGS_FILE,
+            {
+                "format": POLICY_FORMAT,
+                "algo": self.algo,
+                "task": self.spec.name,
+                "seed": self.seed,
+                "steps": self.env_steps,
+                "env": self.env_kwargs,
+                "observation_names": self.observation_names,
+                "recipe": self.settings,
+                "training_seeds": TRAINING_SEEDS,
+            },
+        )
 
 
 def check_device(device: Any, pixels: bool) -> None:
@@ -702,29 +530,6 @@ def check_pixel_student(spec: Any, env_kwargs: Mapping[str, Any]) -> None:
             "a timed script). Give the task a state expert (TaskSpec.state_expert), or train "
             "from the state vector."
         )
-
-
-def _train_pixel_student(
-    algo: str, spec: Any, out_path: Path, seed: int, settings: dict[str, Any], device: str
-) -> Any:
-    """:func:`gym_soarm.rl.pixels.train_pixels` in a run folder, with Ctrl-C handling."""
-    started = time.perf_counter()
-    out_path.mkdir(parents=True, exist_ok=True)
-    for stale in (MODEL_FILE, NORMALIZE_FILE, DEMOS_FILE, CURVE_CSV, CURVE_PNG, PIXEL_MODEL_FILE):
-        (out_path / stale).unlink(missing_ok=True)
-    with StopOnInterrupt() as stop:
-        steps, rate = train_pixels(algo, spec, out_path, seed, settings, stop, device)
-        if stop():
-            logger.warning(
-                "%s from pixels: interrupted; the checkpoint and the curve are kept", algo
-            )
-    return TrainResult(
-        out=out_path,
-        env_steps=steps,
-        wall_s=time.perf_counter() - started,
-        success_rate=rate,
-        interrupted=stop.interrupted,
-    )
 
 
 # --------------------------------------------------------------------------- PPO --init
@@ -832,9 +637,9 @@ that function first builds it."""
 __all__ = [
     "DEMOS_FILE",
     "Dataset",
+    "StateTrainer",
     "actor_mean",
     "bc_regularized_ppo_class",
-    "collect",
     "fit",
     "train_imitation",
     "training_seeds",

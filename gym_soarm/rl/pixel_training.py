@@ -1,25 +1,25 @@
 """The pixel student's trainer (``python -m gym_soarm.train --algo bc|dagger --obs-type
-pixels_agent_pos``): collect expert-labelled steps from the cameras, fit the network of
-:mod:`gym_soarm.rl.pixels`, evaluate on the protocol, keep the best round.
+pixels_agent_pos``): the DAgger loop of :mod:`gym_soarm.rl.dagger` with a student that
+sees the cameras (:mod:`gym_soarm.rl.pixels`).
 
-:class:`PixelTrainer` holds a run: its frame store, its network and optimiser, the
-normalisation of the proprioception and of the auxiliary targets, the curve. DAgger's
-rounds are warm-started (the network goes on from the last round, ``round_epochs`` passes
-over everything gathered) and stop once ``patience`` rounds in a row failed to beat the
-best evaluation, or after ``rounds``.
+:class:`PixelTrainer` holds the student's side: its frame store, its network and
+optimiser, the normalisation of the proprioception and of the auxiliary targets (what
+the state expert reads, :func:`privileged_targets <gym_soarm.rl.pixels.privileged_targets>`:
+trained beside the action, never used to act). Each fit pools the frames gathered since
+the last one down by ``downsample`` once, so an epoch costs the network alone.
 """
 
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from gym_soarm.expert import make_expert
-from gym_soarm.rl.evaluation import POLICY_FORMAT, SETTINGS_FILE, make_env, score
+from gym_soarm.rl.curves import TrainResult
+from gym_soarm.rl.dagger import Gathering, ImitationTrainer
+from gym_soarm.rl.evaluation import POLICY_FORMAT, SETTINGS_FILE
 from gym_soarm.rl.pixels import (
     PIXEL_MODEL_FILE,
     PIXEL_POLICY,
@@ -35,8 +35,7 @@ from gym_soarm.rl.pixels import (
     random_shift,
     store_bound,
 )
-from gym_soarm.rl.runs import Curve, dart_noise, training_seeds, write_run_settings
-from gym_soarm.tasks.suites import EVAL_SEED
+from gym_soarm.rl.runs import TRAINING_SEEDS, RunFolder
 
 logger = logging.getLogger(__name__)
 
@@ -44,57 +43,37 @@ AUX_STD_FLOOR = 1e-3
 """The smallest standard deviation of an auxiliary target in its normalisation."""
 
 
-class _Episode:
-    """One environment's episode while the trainer gathers: its observation and info,
-    the episode's number, the last step's ``agent_pos`` and the last command sent."""
-
-    def __init__(self, obs: Any, info: dict[str, Any], number: int, command: np.ndarray) -> None:
-        self.obs, self.info, self.number = obs, info, number
-        self.previous = np.asarray(obs["agent_pos"], np.float32)
-        self.command = command
-
-    def advance(self, obs: Any, info: dict[str, Any], command: np.ndarray) -> None:
-        self.previous = np.asarray(self.obs["agent_pos"], np.float32)
-        self.obs, self.info, self.command = obs, info, command
+def camera_obs(obs: Any, index: int) -> dict[str, Any]:
+    """Environment ``index``'s observation out of a vector env's pixel observation."""
+    return {
+        "pixels": {camera: image[index] for camera, image in obs["pixels"].items()},
+        "agent_pos": obs["agent_pos"][index],
+    }
 
 
-class PixelTrainer:
-    """A pixel student of ``spec``'s state expert trained into ``out_path``.
+class PixelTrainer(ImitationTrainer):
+    """A pixel student of ``spec``'s state expert (see :class:`ImitationTrainer
+    <gym_soarm.rl.dagger.ImitationTrainer>` for the arguments and the loop): the frames
+    in a :class:`FrameStore`, the network of :func:`build_network`, trained on the change
+    of command plus the auxiliary targets."""
 
-    Args:
-        algo: ``"bc"`` or ``"dagger"``.
-        spec: the task's spec (it must have a state expert).
-        out_path: the run folder (``model.pt``, ``settings.json``, the curve).
-        seed: the training seed (network, noise and the training episodes' resets).
-        settings: the checked recipe (``env``, ``algo`` ...).
-        stop: polled between steps and batches; True ends the run cleanly.
-        device: where the network trains (``"cpu"``, ``"cuda"``).
-    """
+    rng_stream = 25
 
     def __init__(
         self,
         algo: str,
         spec: Any,
-        out_path: Path,
+        folder: RunFolder,
         seed: int,
         settings: dict[str, Any],
-        stop: Callable[[], bool],
         device: str = "cpu",
     ) -> None:
         import torch  # before any GL context: see docs/learning.md (torch and Mesa's LLVM)
 
-        self.algo, self.spec, self.out_path, self.seed = algo, spec, out_path, seed
-        self.settings, self.params, self.stop, self.device = (
-            settings,
-            settings["algo"],
-            stop,
-            device,
-        )
-        self.env_kwargs = dict(settings["env"])
-        cameras, self.height, self.width, per_sample, worst, budget = store_bound(
+        super().__init__(algo, spec, folder, seed, settings, device)
+        self.cameras, self.height, self.width, per_sample, worst, budget = store_bound(
             algo, spec, settings
         )
-        self.cameras = cameras
         logger.info(
             "pixel store: %d bytes a step, at most %d steps (%.2f GiB)",
             per_sample,
@@ -106,143 +85,65 @@ class PixelTrainer:
         # The first optimizer imports its optional compilers now, before a GL context exists.
         torch.optim.Adam([torch.zeros(1, requires_grad=True)])
         self.capacity = min(worst, budget)
-        self.envs: list[Any] = []
         self.store: FrameStore | None = None
         self.net: Any = None
         self.optimizer: Any = None
         self.mean = self.std = self.aux_mean = self.aux_std = None
-        self.env_steps = self.episodes = 0
-        self.rate: float | None = None
-        self.best = -1.0
         self._pooled: dict[str, Any] = {}
-        self.rng = np.random.default_rng([seed, 25])
         self.generator = torch.Generator().manual_seed(seed)
         kind = "BC" if algo == "bc" else "DAgger"
         self.title = f"{kind} from pixels on {spec.name}, seed {seed}"
-        self.curve = Curve(out_path, self.title)
 
-    # ----------------------------------------------------------------------- the run
-    def run(self) -> tuple[int, float | None]:
-        """Train; returns the environment steps of the training episodes and the last
-        success rate (None when stopped before the first evaluation)."""
-        self.envs = [
-            make_env(self.spec.name, self.env_kwargs) for _ in range(self.settings["n_envs"])
-        ]
-        try:
-            self.command_of_pos = command_map(self.envs[0])
-            self.observation_names = list(self.envs[0].unwrapped.observation_names)
-            self.write_settings()
-            self.gather(0, self.params["demos"], 1.0)
-            if self.stop() or not len(self.store):
-                return self.env_steps, None
-            self.start_network()
-            self.train_round(0, self.params["epochs"])
-            if self.algo == "dagger":
-                self.dagger_rounds()
-            if self.stop() and self.net is not None and not self.model_path.exists():
-                self.save_model()
-                self.write_settings()
-        finally:
-            for env in self.envs:
-                env.close()
-        return self.env_steps, self.rate
-
-    def dagger_rounds(self) -> None:
-        """The student drives (a share ``beta0 * beta_decay ** r`` of the steps left to
-        the expert), the expert labels; warm-started rounds until the evaluation stops
-        rising for ``patience`` rounds, reaches 100 %, or ``rounds`` are done."""
-        params, since_best = self.params, 0
-        for round_ in range(1, params["rounds"] + 1):
-            if self.stop() or self.best >= 1.0 or since_best >= params["patience"]:
-                return
-            best = self.best
-            beta = params["beta0"] * params["beta_decay"] ** round_
-            self.gather(round_, params["episodes_per_round"], beta)
-            if self.stop():
-                return
-            self.train_round(round_, params["round_epochs"])
-            since_best = 0 if self.best > best else since_best + 1
-
-    def train_round(self, round_: int, epochs: int) -> None:
-        loss = self.fit(epochs)
-        if not self.stop():
-            self.evaluate(round_, loss)
+    def make_vector_env(self) -> Any:
+        venv = super().make_vector_env()
+        first = venv.envs[0]
+        self.command_of_pos = command_map(first)
+        self.observation_names = list(first.unwrapped.observation_names)
+        act_dim = venv.single_action_space.shape[0]
+        self.previous = np.zeros((venv.num_envs, 6), np.float32)
+        self.command = np.zeros((venv.num_envs, act_dim), np.float32)
+        return venv
 
     @property
     def model_path(self) -> Path:
         return self.out_path / PIXEL_MODEL_FILE
 
     # ----------------------------------------------------------------------- gathering
-    def gather(self, round_: int, episodes: int, beta: float) -> None:
-        """Run ``episodes`` training episodes on the environments side by side, storing
-        every step with the expert's label; the executed action is the label with DART
-        noise, or (DAgger, a share ``1 - beta`` of the steps) the student's."""
-        experts = [make_expert(env) for env in self.envs]
-        pending = training_seeds(self.seed, round_, episodes)
-        slots: list[_Episode | None] = [self.start(env, pending) for env in self.envs]
-        learner = self.policy() if self.net is not None and beta < 1.0 else None
-        successes = 0
-        while any(slots) and not self.stop():
-            active = [i for i, slot in enumerate(slots) if slot is not None]
-            episodes_now = [slots[i] for i in active]
-            labels = np.clip(
-                np.stack([np.asarray(experts[i](slots[i].obs, slots[i].info)) for i in active]),
-                -1.0,
-                1.0,
-            ).astype(np.float32)
-            executed = dart_noise(labels, self.params["dart_std"], self.rng)
-            if learner is not None:
-                executed = self.student_share(learner, episodes_now, executed, beta)
-            for j, i in enumerate(active):
-                slot = slots[i]
-                self.store.add(
-                    slot.obs, slot.previous, slot.command, labels[j], executed[j],
-                    slot.number, round_, privileged_targets(slot.info),
-                )  # fmt: skip
-                obs, _, terminated, truncated, info = self.envs[i].step(executed[j])
-                self.env_steps += 1
-                if terminated or truncated:
-                    successes += bool(info.get("is_success", False))
-                    slots[i] = self.start(self.envs[i], pending)
-                else:
-                    slot.advance(obs, info, executed[j])
-        logger.info(
-            "%s: round %d, %d steps stored (%.2f GiB held), beta %.2f, %d of the gathered "
-            "episodes succeeded",
-            self.title, round_, len(self.store), self.store.nbytes() / 2**30, beta, successes,
-        )  # fmt: skip
+    def stored(self) -> int:
+        return 0 if self.store is None else len(self.store)
 
-    def start(self, env: Any, pending: list[int]) -> _Episode | None:
-        """Reset ``env`` to the next pending seed (None when none is left)."""
-        if not pending:
-            return None
-        obs, info = env.reset(seed=pending.pop(0))
+    def begin_episodes(self, run: Gathering, mask: np.ndarray) -> None:
+        pos = np.asarray(run.obs["agent_pos"], np.float32)
+        self.previous[mask] = pos[mask]
+        self.command[mask] = command_at_reset(self.command_of_pos, pos[mask])
         if self.store is None:
-            act_dim = env.action_space.shape[0]
-            aux_dim = len(privileged_targets(info)) if self.params["aux_weight"] > 0 else 0
+            aux_dim = len(privileged_targets(run.infos[0])) if self.params["aux_weight"] else 0
             self.store = FrameStore(
-                self.cameras, self.height, self.width, act_dim, self.capacity, aux_dim=aux_dim
-            )
-        command = command_at_reset(self.command_of_pos, np.asarray(obs["agent_pos"], np.float32))
-        self.episodes += 1
-        return _Episode(obs, info, self.episodes - 1, command)
+                self.cameras, self.height, self.width, self.command.shape[1], self.capacity,
+                aux_dim=aux_dim,
+            )  # fmt: skip
 
-    def student_share(
-        self, learner: PixelPolicy, episodes: list[_Episode], executed: np.ndarray, beta: float
-    ) -> np.ndarray:
-        """``executed`` with the student's actions in place of a share ``1 - beta``."""
-        use = self.rng.random(len(episodes)) >= beta
-        if not use.any():
-            return executed
-        chosen = [episode for episode, u in zip(episodes, use, strict=True) if u]
-        executed = executed.copy()
-        executed[use] = learner.act(
-            [e.obs for e in chosen], [e.previous for e in chosen], [e.command for e in chosen]
+    def after_step(self, before: Any, executed: np.ndarray) -> None:
+        self.previous = np.asarray(before["agent_pos"], np.float32).copy()
+        self.command = np.asarray(executed, np.float32).copy()
+
+    def record(
+        self, run: Gathering, live: np.ndarray, labels: Any, executed: Any, round_: int
+    ) -> None:
+        for i in np.flatnonzero(live):
+            self.store.add(
+                camera_obs(run.obs, i), self.previous[i], self.command[i], labels[i],
+                executed[i], run.episode[i], round_, privileged_targets(run.infos[i]),
+            )  # fmt: skip
+
+    def student_actions(self, run: Gathering, mask: np.ndarray) -> np.ndarray:
+        chosen = np.flatnonzero(mask)
+        return self.policy().act(
+            [camera_obs(run.obs, i) for i in chosen], self.previous[mask], self.command[mask]
         )
-        return executed
 
     # ----------------------------------------------------------------------- the network
-    def start_network(self) -> None:
+    def start_learning(self) -> None:
         """The normalisations (from the demonstrations) and a fresh network and optimiser."""
         import torch
 
@@ -345,26 +246,14 @@ class PixelTrainer:
             self.device,
         )
 
-    def evaluate(self, round_: int, loss: float) -> None:
-        """Score the student on the protocol's first episodes, keep it if it is the best
-        round so far, extend the curve."""
-        episodes = self.settings["eval_episodes"]
-        result = score(self.spec.name, self.env_kwargs, self.policy(), episodes, EVAL_SEED)
-        self.rate = result["success_rate"]
-        self.curve.add(round_, self.env_steps, len(self.store), self.rate, result, episodes)
-        if self.rate >= self.best:  # DAgger keeps its best round
-            self.best = self.rate
-            self.save_model()
-        self.write_settings()
-        logger.info(
-            "%s: round %d, %d samples, loss %.4f, %.0f s, success %.0f %%",
-            self.title, round_, len(self.store), loss, self.curve.rows[-1]["wall_s"],
-            100 * self.rate,
-        )  # fmt: skip
+    def on_interrupt(self) -> None:
+        if self.net is not None and not self.model_path.exists():
+            self.save()
+            self.write_settings()
 
     def write_settings(self) -> None:
-        write_run_settings(
-            self.out_path / SETTINGS_FILE,
+        self.folder.write_settings(
+            SETTINGS_FILE,
             {
                 "format": POLICY_FORMAT,
                 "policy": PIXEL_POLICY,
@@ -377,10 +266,11 @@ class PixelTrainer:
                 "image_size": [self.height, self.width],
                 "observation_names": self.observation_names,
                 "recipe": self.settings,
+                "training_seeds": TRAINING_SEEDS,
             },
         )
 
-    def save_model(self) -> None:
+    def save(self) -> None:
         import torch
 
         params = self.params
@@ -410,15 +300,13 @@ class PixelTrainer:
 def train_pixels(
     algo: str,
     spec: Any,
-    out_path: Path,
+    folder: RunFolder,
     seed: int,
     settings: dict[str, Any],
-    stop: Callable[[], bool],
     device: str = "cpu",
-) -> tuple[int, float | None]:
-    """Train a pixel student (:class:`PixelTrainer`); returns the environment steps of the
-    training episodes and the last success rate."""
-    return PixelTrainer(algo, spec, out_path, seed, settings, stop, device).run()
+) -> TrainResult:
+    """Train a pixel student (:class:`PixelTrainer`) in ``folder``; returns the result."""
+    return PixelTrainer(algo, spec, folder, seed, settings, device).run()
 
 
 __all__ = ["PixelTrainer", "train_pixels"]

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from gym_soarm import __version__
-from gym_soarm.rl.curves import write_curve_png
+from gym_soarm.rl.curves import TrainResult, write_curve_png
 from gym_soarm.validation import check_int, check_number
 
 CURVE_CSV = "curve.csv"
@@ -50,52 +50,76 @@ def dart_noise(labels: np.ndarray, std: float, rng: np.random.Generator) -> np.n
     return np.clip(labels + noise, -1.0, 1.0).astype(np.float32)
 
 
-class Curve:
-    """A run's curve: one row an evaluation, rewritten to ``curve.csv`` and
-    ``curve.png`` in ``folder`` after each (the wall time counted from its making)."""
+class RunFolder:
+    """A training run's folder, as every trainer of the package keeps it: made (the files
+    of an earlier run there removed), its ``settings.json``, its curve (``curve.csv`` and
+    ``curve.png``, rewritten after each evaluation) and Ctrl-C (use it as a context
+    manager: :meth:`stop` turns true and the trainer ends cleanly, keeping its checkpoint
+    and curve).
 
-    def __init__(self, folder: Path, title: str) -> None:
-        self.folder, self.title = Path(folder), title
+    Args:
+        path: the folder.
+        title: the curve's title (``"PPO on LiftCube-v0, seed 0"``).
+        fields: the curve's columns (``wall_s`` is filled in by :meth:`add_row`).
+    """
+
+    def __init__(
+        self, path: str | Path, title: str, fields: tuple[str, ...] = CURVE_FIELDS
+    ) -> None:
+        self.path, self.title, self.fields = Path(path), title, fields
         self.rows: list[dict[str, Any]] = []
+        self.stop = StopOnInterrupt()
         self.started = time.perf_counter()
 
-    def add(
-        self,
-        round_: int,
-        env_steps: int,
-        samples: int,
-        success_rate: float,
-        result: dict[str, Any],
-        episodes: int,
-    ) -> None:
-        """A row for round ``round_`` with ``score``'s ``result``; writes both files."""
-        self.rows.append(
-            {
-                "round": round_,
-                "env_steps": env_steps,
-                "samples": samples,
-                "wall_s": round(time.perf_counter() - self.started, 2),
-                "success_rate": success_rate,
-                "mean_return": round(result["mean_return"], 4),
-                "episodes": episodes,
-            }
-        )
-        with open(self.folder / CURVE_CSV, "w", newline="") as stream:
-            writer = csv.DictWriter(stream, fieldnames=CURVE_FIELDS)
+    def prepare(self, stale: tuple[str, ...] = ()) -> RunFolder:
+        """Make the folder and remove an earlier run's ``stale`` files and curve."""
+        self.path.mkdir(parents=True, exist_ok=True)
+        for name in (*stale, CURVE_CSV, CURVE_PNG):
+            (self.path / name).unlink(missing_ok=True)
+        return self
+
+    def __enter__(self) -> RunFolder:
+        self.stop.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop.__exit__(*exc)
+
+    def wall_s(self) -> float:
+        """Seconds since the folder was made."""
+        return time.perf_counter() - self.started
+
+    def write_settings(self, name: str, fields: dict[str, Any]) -> None:
+        """Write ``fields`` and the package's version as the JSON file ``name``."""
+        settings = {**fields, "gym_soarm_version": __version__}
+        (self.path / name).write_text(json.dumps(settings, indent=2) + "\n")
+
+    def add_row(self, row: dict[str, Any]) -> None:
+        """Append an evaluation's row (its ``wall_s`` now) and rewrite the curve."""
+        self.rows.append({**row, "wall_s": round(self.wall_s(), 2)})
+        self.write_curve()
+
+    def write_curve(self) -> None:
+        with open(self.path / CURVE_CSV, "w", newline="") as stream:
+            writer = csv.DictWriter(stream, fieldnames=self.fields)
             writer.writeheader()
             writer.writerows(self.rows)
-        write_curve_png(self.rows, self.folder / CURVE_PNG, self.title)
+        if self.rows:
+            write_curve_png(self.rows, self.path / CURVE_PNG, self.title)
+
+    def result(self, env_steps: int, success_rate: float | None) -> TrainResult:
+        """The run's :class:`TrainResult` now."""
+        return TrainResult(
+            out=self.path,
+            env_steps=int(env_steps),
+            wall_s=self.wall_s(),
+            success_rate=success_rate,
+            interrupted=self.stop.interrupted,
+        )
 
 
-def write_run_settings(path: Path, fields: dict[str, Any]) -> None:
-    """Write a run's ``settings.json``: ``fields``, then how its training episodes were
-    seeded and the package's version."""
-    settings = {
-        **fields,
-        "training_seeds": f"{SEED_STRIDE} * (seed + 1) + {ROUND_STRIDE} * round + k",
-        "gym_soarm_version": __version__,
-    }
-    path.write_text(json.dumps(settings, indent=2) + "\n")
+TRAINING_SEEDS = f"{SEED_STRIDE} * (seed + 1) + {ROUND_STRIDE} * round + k"
+"""How an imitation run's training episodes are seeded, as its ``settings.json`` says."""
 
 
 def check_run_numbers(
