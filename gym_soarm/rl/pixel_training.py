@@ -161,6 +161,7 @@ class PixelTrainer(ImitationTrainer):
             params["hidden"],
             downsample=params["downsample"],
             aux_dim=store.aux_dim,
+            aux_input=bool(params.get("aux_input", False)) and store.aux_dim > 0,
         ).to(self.device)
         self.optimizer = torch.optim.Adam(self.net.parameters(), lr=params["learning_rate"])
 
@@ -283,6 +284,7 @@ class PixelTrainer(ImitationTrainer):
             "hidden": list(params["hidden"]),
             "downsample": params["downsample"],
             "aux_dim": self.store.aux_dim,
+            "aux_input": bool(params.get("aux_input", False)) and self.store.aux_dim > 0,
         }
         weights = {k: v.detach().cpu() for k, v in self.net.state_dict().items()}
         torch.save(

@@ -221,13 +221,15 @@ def build_network(
     pos_dim: int = PROPRIO_DIM,
     downsample: int = 1,
     aux_dim: int = 0,
+    aux_input: bool = False,
 ) -> Any:
     """The student: an encoder per camera (convolutions, spatial softmax), the
     proprioception beside their keypoints, an MLP to the action. Its ``forward(images,
     proprio)`` takes a dict of float images (N, 3, H, W) in [0, 1] and the normalised
     proprioception (N, 18). With ``aux_dim`` > 0 a second head (``aux``) reads the
     keypoints alone and answers the auxiliary targets of training
-    (:func:`privileged_targets`); acting never uses it."""
+    (:func:`privileged_targets`); with ``aux_input`` its answer is also an input of the
+    action's MLP (an estimate of the state from the images alone)."""
     import torch
     from torch import nn
 
@@ -262,7 +264,7 @@ def build_network(
             self.cameras = tuple(cameras)
             self.encoders = nn.ModuleDict({camera: encoder() for camera in self.cameras})
             layers: list[nn.Module] = []
-            width = 2 * channels[-1] * len(self.cameras) + pos_dim
+            width = 2 * channels[-1] * len(self.cameras) + pos_dim + (aux_dim if aux_input else 0)
             for units in hidden:
                 layers += [nn.Linear(width, units), nn.ReLU()]
                 width = units
@@ -282,6 +284,8 @@ def build_network(
             return torch.cat([self.encoders[c][skip:](images[c] - 0.5) for c in self.cameras], 1)
 
         def act_from(self, keypoints: torch.Tensor, proprio: torch.Tensor) -> torch.Tensor:
+            if aux_input:
+                return self.head(torch.cat([keypoints, self.aux(keypoints), proprio], 1))
             return self.head(torch.cat([keypoints, proprio], 1))
 
         def forward(self, images: dict[str, torch.Tensor], proprio: torch.Tensor) -> torch.Tensor:
@@ -392,6 +396,7 @@ class PixelPolicy:
             layout["hidden"],
             downsample=layout.get("downsample", 1),
             aux_dim=layout.get("aux_dim", 0),
+            aux_input=layout.get("aux_input", False),
         )
         net.load_state_dict(saved["weights"])
         net.to(device).eval()
