@@ -21,13 +21,10 @@ and a behaviour-cloning term on the actor against ``DIR``'s ``demos.npz``
 
 from __future__ import annotations
 
-import csv
 import importlib.util
-import json
 import logging
 import os
 import pickle
-import time
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
@@ -35,15 +32,11 @@ from typing import Any
 
 import numpy as np
 
-from gym_soarm import __version__
 from gym_soarm.envs.settings import merge_keywords
 from gym_soarm.rl.curves import (
-    CURVE_CSV,
     CURVE_FIELDS,
-    CURVE_PNG,
     TrainResult,
     pyplot,
-    write_curve_png,
 )
 from gym_soarm.rl.evaluation import (
     MODEL_FILE,
@@ -56,7 +49,7 @@ from gym_soarm.rl.evaluation import (
     score,
 )
 from gym_soarm.rl.hyperparams import ALGORITHMS, IMITATION, POLICY_CLASSES, VEC_ENVS, recipe
-from gym_soarm.rl.runs import StopOnInterrupt
+from gym_soarm.rl.runs import RunFolder
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
 from gym_soarm.validation import check_choice, check_int
@@ -65,20 +58,18 @@ logger = logging.getLogger(__name__)
 
 
 class _Run:
-    """The bookkeeping of one run: evaluations, curve rows and checkpoints."""
+    """The bookkeeping of one SB3 run in its :class:`RunFolder`: evaluations, curve rows
+    and checkpoints."""
 
     def __init__(
-        self, out: Path, task: str, env_kwargs: dict, episodes: int, title: str, model: Any
+        self, folder: RunFolder, task: str, env_kwargs: dict, episodes: int, model: Any
     ) -> None:
-        self.out = out
+        self.folder = folder
         self.task = task
         self.env_kwargs = env_kwargs
         self.episodes = episodes
-        self.title = title
         self.model = model
-        self.rows: list[dict[str, float]] = []
-        self.started = time.perf_counter()
-        self.eval_s = 0.0
+        self.last_rate: float | None = None
 
     def normalizer(self) -> Any:
         from stable_baselines3.common.vec_env import VecNormalize
@@ -87,19 +78,19 @@ class _Run:
         return env if isinstance(env, VecNormalize) else None
 
     def save(self) -> None:
-        self.model.save(self.out / MODEL_FILE)
+        self.model.save(self.folder.path / MODEL_FILE)
         normalizer = self.normalizer()
         if normalizer is not None:
             # The statistics alone (the environments are not pickled).
             venv, normalizer.venv = normalizer.venv, None
             try:
-                with open(self.out / NORMALIZE_FILE, "wb") as stream:
+                with open(self.folder.path / NORMALIZE_FILE, "wb") as stream:
                     pickle.dump(normalizer, stream)
             finally:
                 normalizer.venv = venv
 
     def evaluate(self, env_steps: int) -> float:
-        wall = time.perf_counter() - self.started
+        wall = self.folder.wall_s()
         normalizer = self.normalizer()
         model = self.model
 
@@ -108,10 +99,8 @@ class _Run:
                 obs = normalizer.normalize_obs(obs)
             return model.predict(obs, deterministic=True)[0]
 
-        began = time.perf_counter()
         result = score(self.task, self.env_kwargs, act, self.episodes, EVAL_SEED)
-        self.eval_s += time.perf_counter() - began
-        self.rows.append(
+        self.folder.rows.append(
             {
                 "env_steps": env_steps,
                 "wall_s": round(wall, 2),
@@ -120,24 +109,47 @@ class _Run:
                 "episodes": self.episodes,
             }
         )
-        self.write_curve()
+        self.folder.write_curve()
         self.save()
         logger.info(
             "%s: %d steps, %.0f s, success %.0f %%",
-            self.title,
+            self.folder.title,
             env_steps,
             wall,
             100 * result["success_rate"],
         )
-        return result["success_rate"]
+        self.last_rate = result["success_rate"]
+        return self.last_rate
 
-    def write_curve(self) -> None:
-        with open(self.out / CURVE_CSV, "w", newline="") as stream:
-            writer = csv.DictWriter(stream, fieldnames=CURVE_FIELDS)
-            writer.writeheader()
-            writer.writerows(self.rows)
-        if self.rows:
-            write_curve_png(self.rows, self.out / CURVE_PNG, self.title)
+    def learn(self, steps: int, eval_every: int, progress_bar: bool) -> None:
+        """``model.learn`` for ``steps``, evaluating every ``eval_every`` steps and at the
+        end; Ctrl-C stops it after the current step, keeping the checkpoint and curve."""
+        from stable_baselines3.common.callbacks import BaseCallback
+
+        run, stop = self, self.folder.stop
+
+        class _Callback(BaseCallback):
+            def __init__(self) -> None:
+                super().__init__()
+                self.next_eval = eval_every
+
+            def _on_step(self) -> bool:
+                if self.num_timesteps >= self.next_eval:
+                    self.next_eval += eval_every
+                    run.evaluate(self.num_timesteps)
+                return not stop.interrupted
+
+        model = self.model
+        model.learn(total_timesteps=steps, callback=_Callback(), progress_bar=progress_bar)
+        rows = self.folder.rows
+        if stop.interrupted:
+            logger.warning(
+                "%s: interrupted; the checkpoint and the curve are kept", self.folder.title
+            )
+            self.save()
+            self.folder.write_curve()
+        elif not rows or rows[-1]["env_steps"] != model.num_timesteps:
+            self.evaluate(model.num_timesteps)
 
 
 def _check_init(
@@ -267,15 +279,7 @@ def train(
         ImportError: Stable-Baselines3 is not installed (names the extra).
     """
     spec = get_task(task)  # ValueError naming the registered tasks
-    if algo in IMITATION:
-        raise ValueError(
-            f"algo {algo!r} is an imitation trainer: gym_soarm.rl.imitation.train_imitation "
-            f"(python -m gym_soarm.train --algo {algo}); train() runs {', '.join(ALGORITHMS)}."
-        )
-    settings = recipe(algo, spec.name)  # ValueError naming the algorithms
-    settings["env"] = merge_keywords(settings["env"], spec.name, env)
-    if init is not None and algo != "ppo":
-        raise ValueError(f"init (--init) starts PPO only; got --algo {algo}. Pass --algo ppo.")
+    settings = _checked_settings(algo, spec, env, hyperparams, vec_env, init)
     seed = check_int("seed", seed, 0)
     # None takes the recipe's value.
     steps = check_int("steps", settings["steps"] if steps is None else steps, 1)
@@ -283,20 +287,10 @@ def train(
     eval_every = check_int("eval_every", every, 1)
     episodes = settings["eval_episodes"] if eval_episodes is None else eval_episodes
     episodes = check_int("eval_episodes", episodes, 1)
-    if vec_env is not None:
-        settings["vec_env"] = check_choice("vec_env", vec_env, VEC_ENVS)
-    if hyperparams:
-        unknown = sorted(set(hyperparams) - set(settings["algo"]))
-        if unknown:
-            raise ValueError(
-                f"hyperparams {unknown} are not arguments of the {algo} recipe; valid: "
-                f"{', '.join(sorted(settings['algo']))}."
-            )
-        settings["algo"].update(hyperparams)
     out_path = Path(out)
     if out_path.exists() and not out_path.is_dir():
         raise ValueError(f"out must be a folder; {str(out_path)!r} is a file. Pass a new folder.")
-    sb3 = require_sb3()
+    require_sb3()
     pyplot()  # imported before training, never in the middle of it
     if progress_bar and importlib.util.find_spec("rich") is None:
         warnings.warn(
@@ -310,15 +304,6 @@ def train(
     # Small networks: one thread is as fast, and several threads slow down badly
     # (spinning) whenever other processes share the cores.
     torch.set_num_threads(settings["torch_threads"])
-    from stable_baselines3.common.callbacks import BaseCallback
-    from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import (
-        DummyVecEnv,
-        SubprocVecEnv,
-        VecMonitor,
-        VecNormalize,
-    )
-
     env_kwargs = dict(settings["env"])
     probe = make_env(spec.name, env_kwargs)
     observation_names = list(probe.unwrapped.observation_names)
@@ -328,97 +313,99 @@ def train(
         if init is None
         else _check_init(init, spec.name, env_kwargs, observation_names, settings["normalize"])
     )
+    folder = RunFolder(out_path, f"{algo.upper()} on {spec.name}, seed {seed}", CURVE_FIELDS)
+    folder.prepare((MODEL_FILE, NORMALIZE_FILE))
+    folder.write_settings(
+        SETTINGS_FILE,
+        {
+            "format": POLICY_FORMAT,
+            "algo": algo,
+            "task": spec.name,
+            "seed": seed,
+            "steps": steps,
+            "env": env_kwargs,
+            "observation_names": observation_names,
+            "recipe": settings,
+            **({} if init is None else {"init": str(init)}),
+        },
+    )
+    venv = _vector_env(spec.name, env_kwargs, settings, seed)
+    try:
+        model = _model(algo, venv, seed, settings, source)
+        run = _Run(folder, spec.name, env_kwargs, episodes, model)
+        with folder:
+            run.learn(steps, eval_every, progress_bar)
+    finally:
+        venv.close()
+    return folder.result(model.num_timesteps, run.last_rate)
 
-    out_path.mkdir(parents=True, exist_ok=True)
-    for stale in (MODEL_FILE, NORMALIZE_FILE, CURVE_CSV, CURVE_PNG):
-        (out_path / stale).unlink(missing_ok=True)
-    (out_path / SETTINGS_FILE).write_text(
-        json.dumps(
-            {
-                "format": POLICY_FORMAT,
-                "algo": algo,
-                "task": spec.name,
-                "seed": seed,
-                "steps": steps,
-                "env": env_kwargs,
-                "observation_names": observation_names,
-                "recipe": settings,
-                **({} if init is None else {"init": str(init)}),
-                "gym_soarm_version": __version__,
-            },
-            indent=2,
+
+def _checked_settings(
+    algo: str,
+    spec: Any,
+    env: Mapping[str, Any] | None,
+    hyperparams: dict[str, Any] | None,
+    vec_env: str | None,
+    init: Any,
+) -> dict[str, Any]:
+    """The recipe of ``algo`` on ``spec`` with the caller's changes, checked."""
+    if algo in IMITATION:
+        raise ValueError(
+            f"algo {algo!r} is an imitation trainer: gym_soarm.rl.imitation.train_imitation "
+            f"(python -m gym_soarm.train --algo {algo}); train() runs {', '.join(ALGORITHMS)}."
         )
-        + "\n"
+    settings = recipe(algo, spec.name)  # ValueError naming the algorithms
+    settings["env"] = merge_keywords(settings["env"], spec.name, env)
+    if init is not None and algo != "ppo":
+        raise ValueError(f"init (--init) starts PPO only; got --algo {algo}. Pass --algo ppo.")
+    if vec_env is not None:
+        settings["vec_env"] = check_choice("vec_env", vec_env, VEC_ENVS)
+    if hyperparams:
+        unknown = sorted(set(hyperparams) - set(settings["algo"]))
+        if unknown:
+            raise ValueError(
+                f"hyperparams {unknown} are not arguments of the {algo} recipe; valid: "
+                f"{', '.join(sorted(settings['algo']))}."
+            )
+        settings["algo"].update(hyperparams)
+    return settings
+
+
+def _vector_env(task: str, env_kwargs: dict[str, Any], settings: dict[str, Any], seed: int) -> Any:
+    """The recipe's SB3 vector env (native, dummy or subproc), normalised if it says so."""
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import (
+        DummyVecEnv,
+        SubprocVecEnv,
+        VecMonitor,
+        VecNormalize,
     )
 
     if settings["vec_env"] == "native":
         from gym_soarm.rl.native import NativeVecEnv
 
-        venv = VecMonitor(NativeVecEnv(spec.name, env_kwargs, settings["n_envs"]))
+        venv = VecMonitor(NativeVecEnv(task, env_kwargs, settings["n_envs"]))
         venv.seed(seed)
     else:
         vec_class = SubprocVecEnv if settings["vec_env"] == "subproc" else DummyVecEnv
         venv = make_vec_env(
-            lambda: make_env(spec.name, env_kwargs),
+            lambda: make_env(task, env_kwargs),
             n_envs=settings["n_envs"],
             seed=seed,
             vec_env_cls=vec_class,
         )
     if settings["normalize"]:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=settings["algo"]["gamma"])
-    if source is None:
-        algo_class = {"ppo": sb3.PPO, "sac": sb3.SAC}[algo]
-        model = algo_class("MlpPolicy", venv, seed=seed, device="cpu", **settings["algo"])
-    else:
-        model = _ppo_from(source, venv, seed, settings)
-    title = f"{algo.upper()} on {spec.name}, seed {seed}"
-    run = _Run(out_path, spec.name, env_kwargs, episodes, title, model)
+    return venv
 
-    class _StopOnInterrupt(BaseCallback):
-        """Stops ``learn`` after the current step once Ctrl-C was pressed
-        (:class:`~gym_soarm.rl.runs.StopOnInterrupt`); the run keeps its checkpoint and
-        curve."""
 
-        def __init__(self, flag: StopOnInterrupt) -> None:
-            super().__init__()
-            self.flag = flag
+def _model(
+    algo: str, venv: Any, seed: int, settings: dict[str, Any], source: dict[str, Any] | None
+) -> Any:
+    """A new SB3 model of the recipe, or PPO from the ``--init`` folder ``source``."""
+    if source is not None:
+        return _ppo_from(source, venv, seed, settings)
+    import stable_baselines3 as sb3
 
-        def _on_step(self) -> bool:
-            return not self.flag.interrupted
-
-    class _Evaluate(BaseCallback):
-        def __init__(self) -> None:
-            super().__init__()
-            self.next_eval = eval_every
-            self.last_rate: float | None = None
-
-        def _on_step(self) -> bool:
-            if self.num_timesteps >= self.next_eval:
-                self.next_eval += eval_every
-                self.last_rate = run.evaluate(self.num_timesteps)
-            return True
-
-    callback = _Evaluate()
-    stop = StopOnInterrupt()
-    try:
-        with stop:
-            model.learn(
-                total_timesteps=steps,
-                callback=[callback, _StopOnInterrupt(stop)],
-                progress_bar=progress_bar,
-            )
-        if stop.interrupted:
-            logger.warning("%s: interrupted; the checkpoint and the curve are kept", title)
-            run.save()
-            run.write_curve()
-        elif not run.rows or run.rows[-1]["env_steps"] != model.num_timesteps:
-            callback.last_rate = run.evaluate(model.num_timesteps)
-    finally:
-        venv.close()
-    return TrainResult(
-        out=out_path,
-        env_steps=int(model.num_timesteps),
-        wall_s=time.perf_counter() - run.started,
-        success_rate=callback.last_rate,
-        interrupted=stop.interrupted,
-    )
+    algo_class = {"ppo": sb3.PPO, "sac": sb3.SAC}[algo]
+    return algo_class("MlpPolicy", venv, seed=seed, device="cpu", **settings["algo"])
