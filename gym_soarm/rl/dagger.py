@@ -29,6 +29,7 @@ student acts (:meth:`student_actions`), how it is built (:meth:`start_learning`)
 from __future__ import annotations
 
 import logging
+import time
 from pathlib import Path
 from typing import Any
 
@@ -68,7 +69,7 @@ class Gathering:
         self.next_episode = first_episode
         self.infos: list[dict[str, Any]] = [{} for _ in range(n)]
         self.obs: Any = None
-        self.successes = self.finished = 0
+        self.successes = self.finished = self.stepped = 0
         self.start(np.ones(n, np.bool_))
 
     @property
@@ -96,6 +97,7 @@ class Gathering:
         already reset: to the next seed, or a spare reset)."""
         live = self.live
         self.obs, _, terminated, truncated, infos = self.venv.step(actions)
+        self.stepped += len(live)
         ended = np.logical_or(terminated, truncated)
         for i in range(len(ended)):
             self.infos[i] = env_info(infos, i)
@@ -222,6 +224,7 @@ class ImitationTrainer:
     def gather(self, round_: int, episodes: int, beta: float) -> None:
         """Play ``episodes`` training episodes of round ``round_``, storing every step with
         the expert's label; a share ``1 - beta`` of the steps executes the student's action."""
+        began, steps_before = time.perf_counter(), self.env_steps
         run = Gathering(self.venv, training_seeds(self.seed, round_, episodes), self.episodes)
         self.begin_episodes(run, run.live)
         use_student = self.learning and beta < 1.0
@@ -242,9 +245,13 @@ class ImitationTrainer:
             if reset.any():
                 self.begin_episodes(run, reset)
         self.episodes = run.next_episode
+        seconds = time.perf_counter() - began
+        stored = self.env_steps - steps_before
         logger.info(
-            "%s: round %d, %d episodes (beta %.2f), %d succeeded with the executed actions",
-            self.title, round_, run.finished, beta, run.successes,
+            "%s: round %d, %d episodes (beta %.2f), %d succeeded with the executed actions; "
+            "%d steps stored in %.0f s (%.0f a second, %d environment steps in all)",
+            self.title, round_, run.finished, beta, run.successes, stored, seconds,
+            stored / max(seconds, 1e-9), run.stepped,
         )  # fmt: skip
 
     def begin_episodes(self, run: Gathering, mask: np.ndarray) -> None:

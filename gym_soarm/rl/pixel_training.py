@@ -12,6 +12,7 @@ the last one down by ``downsample`` once, so an epoch costs the network alone.
 from __future__ import annotations
 
 import logging
+import time
 from pathlib import Path
 from typing import Any
 
@@ -201,7 +202,7 @@ class PixelTrainer(ImitationTrainer):
         change = torch.as_tensor(change, device=device)
         aux = torch.as_tensor((store.aux[:n] - self.aux_mean) / self.aux_std, device=device)
         self.net.train()
-        loss_value = float("nan")
+        loss_value, began = float("nan"), time.perf_counter()
         for _ in range(epochs):
             order = torch.randperm(n, generator=self.generator).to(device)
             total = 0.0
@@ -216,6 +217,11 @@ class PixelTrainer(ImitationTrainer):
             if self.stop():
                 break
         self.net.eval()
+        seconds = time.perf_counter() - began
+        logger.info(
+            "%s: %d epochs over %d samples in %.0f s (%.0f samples a second)",
+            self.title, epochs, n, seconds, epochs * n / max(seconds, 1e-9),
+        )  # fmt: skip
         return loss_value
 
     def update(self, images: dict[str, Any], proprio: Any, change: Any, aux: Any) -> float:
