@@ -182,7 +182,7 @@ def test_a_multi_task_recording_replays_each_episode_in_its_task(tmp_path):
 
 def _dynamics_file(path):
     joints = {name: {"kp": 700.0, "kv": 20.0} for name in constants.JOINT_NAMES}
-    content = {"format": "gym_soarm.real.dynamics/1", "joints": joints, "control_delay_steps": 1}
+    content = {"format": "gym_soarm.dynamics/1", "joints": joints, "control_delay_steps": 1}
     path.write_text(json.dumps(content))
     return str(path)
 

@@ -120,7 +120,7 @@ BAD_VALUES = [
     ("distractors", 1.0, TypeError, "distractors must be an int"),
     ("control_mode", "torque", ValueError, "control_mode must be one of"),
     ("calibration", 3, TypeError, "calibration must be the path of a LeRobot calibration JSON"),
-    ("dynamics", "", TypeError, "dynamics must be the path of a gym_soarm.real.dynamics/1 JSON"),
+    ("dynamics", "", TypeError, "dynamics must be the path of a gym_soarm.dynamics/1 JSON"),
     ("normalize_actions", 1, TypeError, "normalize_actions must be True or False"),
     ("control_hz", 33, ValueError, "Rates that work: 1, 2, 3"),
     ("control_hz", "30", TypeError, "control_hz must be a whole number"),

@@ -85,7 +85,7 @@ def lerobot_dataset(tmp_path_factory) -> tuple[Path, Path]:
     true.write_text(
         json.dumps(
             {
-                "format": "gym_soarm.real.dynamics/1",
+                "format": "gym_soarm.dynamics/1",
                 "joints": joints,
                 "control_delay_steps": TRUE_DELAY,
             }

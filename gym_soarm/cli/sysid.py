@@ -28,7 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Replay a LeRobot SO-101 dataset's actions in the simulation and fit, per "
         "joint, the servo gains (kp, kv) and the joint's damping, armature and friction loss, "
         "and the control delay, to its recorded observation.state. Writes a "
-        "gym_soarm.real.dynamics/1 file for dynamics=PATH / --dynamics.",
+        "gym_soarm.dynamics/1 file for dynamics=PATH / --dynamics.",
     )
     parser.add_argument("--root", required=True, help="the dataset folder (holds meta/info.json)")
     parser.add_argument(

@@ -156,7 +156,7 @@ class SoArmEnv(gym.Env):
             calibration JSON: actions, ``agent_pos`` and their bounds are then that arm's
             values, as LeRobot's motor bus normalises them (see
             :mod:`gym_soarm.real.calibration`). None: the fixed maps of :mod:`gym_soarm.real.units`.
-        dynamics: the path of a ``gym_soarm.real.dynamics/1`` JSON file (fitted to a real arm
+        dynamics: the path of a ``gym_soarm.dynamics/1`` JSON file (fitted to a real arm
             by ``python -m gym_soarm.sysid``): its servo gains, joint damping, armature,
             friction loss and control delay replace the model's on this environment's
             own model copy; with ``physics_randomization`` the draws centre on them (see

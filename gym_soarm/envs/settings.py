@@ -60,7 +60,7 @@ SETTINGS_FORMAT = "gym_soarm.env_settings/1"
 _PATHS = {
     "calibration": ("a LeRobot calibration JSON file", "Pass e.g. calibration='follower.json'."),
     "dynamics": (
-        "a gym_soarm.real.dynamics/1 JSON file",
+        "a gym_soarm.dynamics/1 JSON file",
         "Fit one with python -m gym_soarm.sysid.",
     ),
 }
@@ -256,7 +256,7 @@ class EnvSettings:
     )
     dynamics: str | os.PathLike[str] | None = _setting(  # noqa: RUF009
         None,
-        "a gym_soarm.real.dynamics/1 JSON (python -m gym_soarm.sysid): servo and joint figures",
+        "a gym_soarm.dynamics/1 JSON (python -m gym_soarm.sysid): servo and joint figures",
         _check_path,
         type_text="str | None",
         metavar="PATH",

@@ -120,7 +120,7 @@ class SoArmEnvConfig(EnvConfig):
         calibration: with LeRobot units, the path of a real SO-101 follower's
             calibration JSON, so the env speaks that arm's values (see
             :mod:`gym_soarm.real.calibration`); None for the fixed maps.
-        dynamics: the path of a ``gym_soarm.real.dynamics/1`` file (servo gains, joint
+        dynamics: the path of a ``gym_soarm.dynamics/1`` file (servo gains, joint
             figures and control delay fitted to a real arm by ``python -m
             gym_soarm.sysid``, see :mod:`gym_soarm.real.dynamics`); None for the model's own.
 

@@ -2,11 +2,11 @@
 
 ``dynamics=PATH`` (a ``gym.make`` keyword, the recorder's and the teleop's
 ``--dynamics`` and the LeRobot config's ``dynamics`` field) reads a JSON file of the
-format ``gym_soarm.real.dynamics/1`` and writes its figures into the environment's own copy
+format ``gym_soarm.dynamics/1`` and writes its figures into the environment's own copy
 of the model (nothing is recompiled, other environments are untouched)::
 
     {
-      "format": "gym_soarm.real.dynamics/1",
+      "format": "gym_soarm.dynamics/1",
       "joints": {
         "shoulder_pan": {"kp": 720.5, "kv": 21.3, "damping": 0.55,
                          "armature": 0.031, "frictionloss": 0.07},
@@ -37,6 +37,9 @@ before; absent, there is no delay. ``fit`` is the report that ``python -m
 gym_soarm.sysid`` writes (how well the figures reproduce the dataset they were fitted
 to); it is kept and not used.
 
+Files are written as ``gym_soarm.dynamics/1``; files that name the format
+``gym_soarm.real.dynamics/1`` (the same content, as one release wrote it) load as well.
+
 With ``physics_randomization`` the randomiser draws its servo gains and damping around
 the file's values and adds its own delay (0 or 1 steps with ``"heavy"``) to the file's.
 
@@ -60,8 +63,11 @@ from gym_soarm import constants
 from gym_soarm.sim.randomization import arm_indices, set_servo_gains
 from gym_soarm.validation import ArgumentTypeError
 
-FORMAT = "gym_soarm.real.dynamics/1"
-"""The ``format`` string of a dynamics file."""
+FORMAT = "gym_soarm.dynamics/1"
+"""The ``format`` string of a dynamics file, as :func:`write_dynamics` writes it."""
+FORMATS: tuple[str, ...] = (FORMAT, "gym_soarm.real.dynamics/1")
+"""The ``format`` strings a dynamics file may hold: :data:`FORMAT` and the name one
+release wrote for the same content."""
 JOINT_FIELDS: tuple[str, ...] = ("kp", "kv", "damping", "armature", "frictionloss")
 """The figures a joint's entry may hold, each an absolute SI value >= 0 (``kp`` > 0)."""
 FIELD_UNITS: dict[str, str] = {
@@ -128,7 +134,7 @@ def check_dynamics(content: Any, source: object = "<dict>") -> Dynamics:
         source: what to name in messages (the file's path).
 
     Raises:
-        ValueError: the content is not a ``gym_soarm.real.dynamics/1`` object, names an
+        ValueError: the content is not a ``gym_soarm.dynamics/1`` object, names an
             unknown key, joint or field, or a value is not a finite number, is negative
             (``kp`` must be positive) or the delay is not an integer 0 to
             :data:`MAX_DELAY_STEPS`. The message names ``source`` and the field.
@@ -140,8 +146,12 @@ def check_dynamics(content: Any, source: object = "<dict>") -> Dynamics:
         raise _refuse(
             source, f"unknown key {unknown[0]!r}; expected only {', '.join(map(repr, TOP_LEVEL))}"
         )
-    if content.get("format") != FORMAT:
-        raise _refuse(source, f"field 'format' is {content.get('format')!r}; expected {FORMAT!r}")
+    if content.get("format") not in FORMATS:
+        raise _refuse(
+            source,
+            f"field 'format' is {content.get('format')!r}; expected "
+            f"{' or '.join(map(repr, FORMATS))}",
+        )
     entries = content.get("joints", {})
     if not isinstance(entries, Mapping):
         raise _refuse(source, f"field 'joints' is a {type(entries).__name__}, not an object")

@@ -535,7 +535,7 @@ def replay(
             episode's recorded task where the dataset lists it, else :data:`REPLAY_TASK`.
         seed: with ``task`` (or a dataset that lists no origins), episode ``k`` resets the
             scene with ``seed + k``.
-        dynamics: a ``gym_soarm.real.dynamics/1`` file (servo gains, joint figures, control
+        dynamics: a ``gym_soarm.dynamics/1`` file (servo gains, joint figures, control
             delay; see :mod:`gym_soarm.real.dynamics`) to replay with; None for the
             recording's own (gym_soarm recordings store theirs) or the model's own.
         settings: further ``gym.make`` keywords of :data:`REPLAY_OVERRIDES` (e.g.

@@ -332,7 +332,7 @@ def record(
         calibration: with LeRobot units, a real SO-101 follower's LeRobot calibration
             JSON: states and actions are then that arm's values (see
             :mod:`gym_soarm.real.calibration`).
-        dynamics: a ``gym_soarm.real.dynamics/1`` file (servo gains, joint figures, control
+        dynamics: a ``gym_soarm.dynamics/1`` file (servo gains, joint figures, control
             delay; see :mod:`gym_soarm.real.dynamics`) the simulated arm moves with.
         settings: every environment keyword at once (a
             :class:`gym_soarm.envs.settings.EnvSettings`), instead of ``units``,
