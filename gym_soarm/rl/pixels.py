@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from gym_soarm.rl.runs import check_run_numbers
-from gym_soarm.validation import check_int, check_number
+from gym_soarm.validation import ArgumentTypeError, check_int, check_number
 
 logger = logging.getLogger(__name__)
 
@@ -488,6 +488,12 @@ def check_pixel_settings(algo: str, settings: dict[str, Any]) -> dict[str, Any]:
     params["downsample"] = check_int("downsample", params["downsample"], 1, 8)
     params["max_memory_gb"] = check_number("max_memory_gb", params["max_memory_gb"], 0.0)
     params["aux_weight"] = check_number("aux_weight", params.get("aux_weight", 0.0), 0.0)
+    aux_input = params.get("aux_input", False)
+    if not isinstance(aux_input, bool):
+        raise ArgumentTypeError(
+            f"aux_input must be true or false (the auxiliary estimate as an input of the "
+            f"action's MLP); got {aux_input!r}."
+        )
     if algo == "dagger":
         params["patience"] = check_int("patience", params.get("patience", params["rounds"]), 1)
     if params["max_memory_gb"] == 0:
