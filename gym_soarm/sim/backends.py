@@ -1,14 +1,17 @@
 """Physics backends: N simulations of one scene behind one small interface.
 
 The step core (:mod:`gym_soarm.envs.core`) is written once over a backend; a backend
-only loads the model, sets the servo targets, steps, exposes the arrays the tasks read
-(:class:`~gym_soarm.sim.arrays.SimArrays`) and copies one simulation's state out to an
-environment's own ``MjData`` and back in:
+(:class:`Backend`, the one protocol every backend implements) only sets the servo
+targets, steps, exposes the arrays the tasks read
+(:class:`~gym_soarm.sim.arrays.SimArrays`), copies one simulation's state out to an
+environment's own ``MjData`` and back in, takes in what resets wrote into the models,
+and closes:
 
 * :class:`MjDataBackend`: one environment's own ``MjData`` (N = 1), read without a
   batch axis (the tasks' unbatched fast path);
 * :class:`BatchBackend`: N simulations in one ``mujoco.batch.Batch`` (MuJoCo's thread
-  pool, the GIL released, bit for bit what stepping each alone gives).
+  pool, the GIL released, bit for bit what stepping each alone gives);
+* :class:`~gym_soarm.sim.warp_backend.WarpBackend`: N worlds of MuJoCo Warp (a GPU).
 
 A backend reports which simulations MuJoCo itself found unsound (a raised error, a new
 warning); the core adds its own checks (NaN, thrown objects, turned joints).
@@ -45,27 +48,60 @@ def write_targets(
 
 
 class Backend(Protocol):
-    """N simulations of one scene, as the step core drives them."""
+    """N simulations of one scene, as the step core and the environments drive them.
+
+    Every backend implements all of it: :class:`MjDataBackend`, :class:`BatchBackend`
+    and :class:`~gym_soarm.sim.warp_backend.WarpBackend`. The environments build their
+    simulations with their own ``MjModel``/``MjData`` (resets, snapshots, rendering) and
+    move them in and out with :meth:`load` and :meth:`unload`.
+
+    Attributes:
+        num_envs: N, the simulations it holds.
+        index: where the scene's parts lie (every simulation shares it).
+    """
 
     num_envs: int
     index: SimIndex
 
     def set_targets(self, ids: np.ndarray | None, targets: np.ndarray) -> None:
         """The servo targets (rad, ``(len(ids), 6)``) of simulations ``ids`` (None: all)."""
+        ...
 
     def step(self, ids: np.ndarray | None, nstep: int) -> dict[int, str]:
         """Advance simulations ``ids`` (None: all) by ``nstep`` physics steps; the
         simulations MuJoCo found unsound on the way, with why."""
+        ...
 
     def arrays(self, episode: dict[str, Any]) -> SimArrays:
         """Live arrays of every simulation, with the tasks' per-episode values."""
+        ...
+
+    def load(self, i: int, physics: SoArmPhysics) -> None:
+        """Copy ``physics`` (an environment's own simulation, just reset or restored)
+        into simulation ``i``."""
+        ...
+
+    def unload(self, i: int, physics: SoArmPhysics) -> None:
+        """Copy simulation ``i`` into ``physics``, as a step of that environment leaves it."""
+        ...
+
+    def set_models(self) -> None:
+        """Take in what resets wrote into the simulations' models (poses of fixtures,
+        randomisation) and the states :meth:`load` staged."""
+        ...
+
+    def close(self) -> None:
+        """Release what the backend holds (safe to call twice)."""
+        ...
 
 
 class MjDataBackend:
     """One environment's simulation: its own :class:`~gym_soarm.sim.physics.SoArmPhysics`.
 
     Its arrays are the ``MjData``'s own, without the batch axis, so the tasks score it
-    with plain scalars (:data:`gym_soarm.sim.arrays.SCALARS`).
+    with plain scalars (:data:`gym_soarm.sim.arrays.SCALARS`). The simulation is the
+    environment's: loading or unloading that same physics copies nothing, and the
+    model's edits need no :meth:`set_models`.
     """
 
     num_envs = 1
@@ -86,6 +122,33 @@ class MjDataBackend:
 
     def arrays(self, episode: dict[str, Any]) -> SimArrays:
         return SimArrays.of_physics(self.physics, episode)
+
+    def load(self, i: int, physics: SoArmPhysics) -> None:
+        """Copy ``physics`` (a simulation of the same scene) into this one: all of its
+        ``MjData``."""
+        _check_single(i, "load")
+        if physics is not self.physics:
+            mujoco.mj_copyData(self.physics.data.ptr, self.physics.model.ptr, physics.data.ptr)
+
+    def unload(self, i: int, physics: SoArmPhysics) -> None:
+        """Copy this simulation into ``physics`` (of the same scene): all of its ``MjData``."""
+        _check_single(i, "unload")
+        if physics is not self.physics:
+            mujoco.mj_copyData(physics.data.ptr, physics.model.ptr, self.physics.data.ptr)
+
+    def set_models(self) -> None:
+        """Nothing to take in: the simulation steps on the environment's own model."""
+
+    def close(self) -> None:
+        """Nothing to release: the simulation is the environment's, which frees it."""
+
+
+def _check_single(i: int, method: str) -> None:
+    if i != 0:
+        raise ValueError(
+            f"MjDataBackend.{method}: simulation {i!r} does not exist; expected 0 (the "
+            "backend holds one simulation). Use BatchBackend for N simulations."
+        )
 
 
 class BatchBackend:

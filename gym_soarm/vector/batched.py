@@ -42,7 +42,7 @@ from gym_soarm.envs.core import StepCore
 from gym_soarm.envs.env import SoArmEnv
 from gym_soarm.envs.settings import STATE_OBS_TYPES
 from gym_soarm.sim.arrays import SimArrays
-from gym_soarm.sim.backends import BatchBackend
+from gym_soarm.sim.backends import Backend, BatchBackend
 from gym_soarm.sim.warp_backend import WarpBackend, check_device
 from gym_soarm.validation import check_choice, check_int
 from gym_soarm.vector.common import (
@@ -174,6 +174,7 @@ class BatchedVectorEnv(VectorEnv):
             _check_batchable(first.task_spec)
             models = [env.physics.model.ptr for env in self.envs]
             index = first.physics.sim_index
+            self._backend: Backend
             if physics == "warp":
                 self._backend = WarpBackend(models, device, index)
             else:
