@@ -9,8 +9,12 @@ vector_env=...)`` picks one (:func:`~gym_soarm.vector.batched.make_vector_env`):
 * ``"processes"`` (:class:`~gym_soarm.vector.processes.SoArmVectorEnv`): blocks of
   single environments in worker processes; for pixels.
 
-:mod:`~gym_soarm.vector.common` holds what both share (seeds, reset masks, action
-checks, observation leaves) and :mod:`~gym_soarm.vector.workers` the worker processes.
+Both are transport under :class:`~gym_soarm.vector.base.SoArmVectorBase`, which holds
+the ``VectorEnv`` shell (the argument, seed and action checks, the autoreset state, the
+final observations and infos, ``call``/``get_attr``/``set_attr``/``render``/``close``);
+:mod:`~gym_soarm.vector.common` holds the helpers they share (seeds, reset masks,
+action checks, observation leaves) and :mod:`~gym_soarm.vector.workers` the worker
+processes.
 """
 
 from __future__ import annotations

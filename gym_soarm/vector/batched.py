@@ -29,12 +29,10 @@ from __future__ import annotations
 
 import copy
 import warnings
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space
 
 from gym_soarm import constants
 from gym_soarm.envs.control import JOINT_DELTA, JOINT_POS, NormalizedControl
@@ -45,17 +43,10 @@ from gym_soarm.sim.arrays import SimArrays
 from gym_soarm.sim.backends import Backend, BatchBackend
 from gym_soarm.sim.warp_backend import WarpBackend, check_device
 from gym_soarm.validation import check_choice, check_int
+from gym_soarm.vector.base import SoArmVectorBase, StepReturn
 from gym_soarm.vector.common import (
-    TIME_LIMIT_ATTRIBUTE,
-    batched_obs,
-    check_actions,
     leaf_value,
     nest,
-    observation_leaves,
-    parse_autoreset_mode,
-    parse_seeds,
-    pop_reset_mask,
-    values_per_env,
 )
 from gym_soarm.vector.workers import cpu_count
 
@@ -87,7 +78,7 @@ def _column(values: Any, n: int) -> np.ndarray:
     return array.astype(np.float64) if array.dtype.kind == "f" else array
 
 
-class BatchedVectorEnv(VectorEnv):
+class BatchedVectorEnv(SoArmVectorBase):
     """``num_envs`` :class:`~gym_soarm.envs.env.SoArmEnv` simulations stepped as one batch.
 
     Made by ``gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point")``
@@ -128,7 +119,7 @@ class BatchedVectorEnv(VectorEnv):
         **env_kwargs: Any,
     ) -> None:
         self.closed = True
-        num_envs = check_int("num_envs", num_envs, 1)
+        num_envs = self._check_arguments(num_envs, max_episode_steps, autoreset_mode, copy)
         check_choice("physics", physics, PHYSICS_BACKENDS)
         if physics == "mujoco" and device is not None:
             raise ValueError(
@@ -140,14 +131,7 @@ class BatchedVectorEnv(VectorEnv):
             _check_warp_settings(env_kwargs)
         if num_threads is None:
             num_threads = cpu_count()
-        num_threads = min(check_int("num_threads", num_threads, 1), num_envs)
-        if max_episode_steps is not None:
-            max_episode_steps = check_int("max_episode_steps", max_episode_steps, 1)
-        self.autoreset_mode = parse_autoreset_mode(autoreset_mode)
-        self.num_envs = num_envs
-        self.num_threads = num_threads
-        self.copy = bool(copy)
-        self.max_episode_steps = max_episode_steps
+        self.num_threads = min(check_int("num_threads", num_threads, 1), num_envs)
 
         first = SoArmEnv(**env_kwargs)  # checks every argument
         self.envs: list[SoArmEnv] = [first]
@@ -157,17 +141,8 @@ class BatchedVectorEnv(VectorEnv):
             for env in self.envs:
                 env.close()
             raise
-        self.settings = first.settings
-        """Every environment's settings (:class:`gym_soarm.envs.settings.EnvSettings`)."""
-        self.metadata = dict(first.metadata)  # render_fps: the control rate
-        self.metadata["autoreset_mode"] = self.autoreset_mode
-        self.render_mode = first.render_mode
-        self.single_action_space = first.action_space
-        self.action_space = batch_space(self.single_action_space, num_envs)
-        self.single_observation_space = first.observation_space
-        self.observation_space = batch_space(self.single_observation_space, num_envs)
-        self._leaves = observation_leaves(self.single_observation_space)
-        self._obs = [np.zeros((num_envs, *shape), dtype) for _, shape, dtype in self._leaves]
+        self._take_spaces(first)
+        self._obs_arrays = [np.zeros((num_envs, *shape), dtype) for _, shape, dtype in self._leaves]
 
         self._task = first.task_logic  # scores the batch; per-env values live in _episode
         try:
@@ -178,7 +153,7 @@ class BatchedVectorEnv(VectorEnv):
             if physics == "warp":
                 self._backend = WarpBackend(models, device, index)
             else:
-                self._backend = BatchBackend(models, num_threads, index)
+                self._backend = BatchBackend(models, self.num_threads, index)
         except BaseException:
             for env in self.envs:
                 env.close()
@@ -196,14 +171,12 @@ class BatchedVectorEnv(VectorEnv):
         self._elapsed = np.zeros(num_envs, dtype=np.int64)  # the time limit's count
         self._in_batch = np.zeros(num_envs, dtype=np.bool_)  # env i's own data is stale
         self._own_control = np.zeros(num_envs, dtype=np.bool_)
-        self._autoreset_envs = np.zeros(num_envs, dtype=np.bool_)
         self._last_infos: dict[str, Any] = {}  # the last step's (for a divergence)
         self._reset_infos: list[dict[str, Any] | None] = [None] * num_envs
         self._info_from_reset = np.zeros(num_envs, dtype=np.bool_)  # last info: the reset's
         self._sparse = np.zeros(num_envs, dtype=np.bool_)  # reward_type, per environment
         self._control = self._batch_control(first)
         self._instructions = np.empty(num_envs, dtype=object)
-        self._started = False
         self.closed = False
 
     @staticmethod
@@ -252,38 +225,20 @@ class BatchedVectorEnv(VectorEnv):
         self._check_open()
         return tuple(self._unload(i) for i in range(self.num_envs))
 
-    # --- Gymnasium API -------------------------------------------------------------------
-    def reset(
-        self,
-        *,
-        seed: int | Sequence[int | None] | None = None,
-        options: dict[str, Any] | None = None,
-    ) -> tuple[Any, dict[str, Any]]:
-        """Reset every environment (or those of ``options["reset_mask"]``).
-
-        Args:
-            seed: None (fresh entropy), an int ``s`` (environment ``i`` gets ``s + i``) or
-                one seed (or None) per environment.
-            options: the reset options of every environment; ``"reset_mask"`` (a bool
-                array of shape ``(num_envs,)``) resets only the marked environments.
-        """
-        self._check_open()
-        seeds = parse_seeds(seed, self.num_envs)
-        options = dict(options) if options is not None else None
-        mask = pop_reset_mask(options, self.num_envs)
+    # --- the transport under SoArmVectorBase -------------------------------------------
+    def _reset(
+        self, seeds: list[int | None], options: dict[str, Any] | None, mask: np.ndarray | None
+    ) -> dict[str, Any]:
         if mask is None:
             mask = np.ones(self.num_envs, dtype=np.bool_)
-        rows = np.flatnonzero(mask).tolist()
         infos: dict[str, Any] = {}
-        for i in rows:
+        for i in np.flatnonzero(mask).tolist():
             obs, info = self._reset_one(i, seeds[i], options)
             self._write_obs(i, obs)
             infos = self._add_info(infos, info, i)
         self._backend.set_models()  # the resets edited the models
-        self._autoreset_envs[mask] = False
         self._elapsed[mask] = 0
-        self._started = True
-        return self._batched_obs(), infos
+        return infos
 
     def _reset_one(
         self, i: int, seed: int | None, options: dict[str, Any] | None
@@ -295,27 +250,13 @@ class BatchedVectorEnv(VectorEnv):
         return obs, info
 
     def _write_obs(self, i: int, obs: Any) -> None:
-        for (path, _, _), array in zip(self._leaves, self._obs, strict=True):
+        for (path, _, _), array in zip(self._leaves, self._obs_arrays, strict=True):
             array[i] = leaf_value(obs, path)
 
-    def _batched_obs(self) -> Any:
-        return batched_obs(self._leaves, self._obs, self.copy)
-
-    def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        """Step every environment with its row of ``actions`` (shape ``(num_envs, 6)``).
-
-        Returns:
-            Batched observations, rewards (float64), terminations, truncations and infos,
-            as :class:`~gym_soarm.vector.SoArmVectorEnv` returns them.
-
-        Raises:
-            ValueError: actions of another shape, or not finite numbers (nothing is
-                stepped).
-        """
-        self._check_open()
-        if not self._started:
-            raise RuntimeError("call reset() before step() on the vector environment.")
-        array = self._check_actions(actions)
+    def _step(self, actions: np.ndarray) -> StepReturn:
+        """One step of the batch (the time limit, the autoreset and the divergences of
+        the stepping environments), as N single environments would take it."""
+        array = actions.astype(np.float64)
         n, mode = self.num_envs, self.autoreset_mode
         restart = np.zeros(n, dtype=np.bool_)
         if mode is AutoresetMode.NEXT_STEP:
@@ -340,8 +281,10 @@ class BatchedVectorEnv(VectorEnv):
         truncated = np.zeros(n, dtype=np.bool_)
         if self.max_episode_steps is not None:
             truncated = stepping & (self._elapsed >= self.max_episode_steps)
-        last_obs = {i: [a[i].copy() for a in self._obs] for i in np.flatnonzero(diverged).tolist()}
-        for array_, rows in zip(self._obs, obs_rows, strict=True):
+        last_obs = {
+            i: [a[i].copy() for a in self._obs_arrays] for i in np.flatnonzero(diverged).tolist()
+        }
+        for array_, rows in zip(self._obs_arrays, obs_rows, strict=True):
             array_[stepping] = rows[stepping]
         if diverged.any():
             self._truncate_diverged(reasons, last_obs, rewards, terminated, truncated, infos)
@@ -358,16 +301,7 @@ class BatchedVectorEnv(VectorEnv):
         if restart.any():
             self._backend.set_models()
         self._last_infos = infos
-        self._autoreset_envs = (
-            ended if mode is not AutoresetMode.SAME_STEP else np.zeros(n, np.bool_)
-        )
         return self._batched_obs(), rewards, terminated, truncated, infos
-
-    def _check_actions(self, actions: Any) -> np.ndarray:
-        array = check_actions(
-            actions, self.action_space.shape, self.autoreset_mode, self._autoreset_envs
-        )
-        return array.astype(np.float64)
 
     def _targets(self, actions: np.ndarray, ids: np.ndarray) -> np.ndarray:
         """The servo targets (rad) of the stepping environments ``ids``: converted for the
@@ -397,7 +331,7 @@ class BatchedVectorEnv(VectorEnv):
             }
             return [values[path].astype(dtype) for path, _, dtype in self._leaves]
         # Pixels: each environment renders its own copy of the simulation.
-        rows = [np.zeros_like(a) for a in self._obs]
+        rows = [np.zeros_like(a) for a in self._obs_arrays]
         for i in range(self.num_envs):
             env = self._unload(i)
             obs = env.observation()
@@ -456,7 +390,7 @@ class BatchedVectorEnv(VectorEnv):
             rewards[i] = 0.0
             terminated[i] = False
             truncated[i] = True
-            for array, row in zip(self._obs, rows, strict=True):
+            for array, row in zip(self._obs_arrays, rows, strict=True):
                 array[i] = row
             # The last sound info: the reset's, or the previous step's row.
             reset_info = self._reset_infos[i] if self._info_from_reset[i] else None
@@ -484,7 +418,10 @@ class BatchedVectorEnv(VectorEnv):
         finals = {}
         for i in ended.tolist():
             final_obs = nest(
-                {path: a[i].copy() for (path, _, _), a in zip(self._leaves, self._obs, strict=True)}
+                {
+                    path: a[i].copy()
+                    for (path, _, _), a in zip(self._leaves, self._obs_arrays, strict=True)
+                }
             )
             finals[i] = (
                 final_obs,
@@ -496,51 +433,16 @@ class BatchedVectorEnv(VectorEnv):
             self._elapsed[i] = 0
             infos = self._add_info(infos, info, i)
         self._backend.set_models()
-        for i in sorted(finals):
-            infos = self._add_info(
-                infos, {"final_obs": finals[i][0], "final_info": finals[i][1]}, i
-            )
-        return infos
+        return self._add_finals(infos, finals)
 
-    # --- the rest of the VectorEnv API -----------------------------------------------------
-    def _check_open(self) -> None:
-        if self.closed:
-            raise RuntimeError(
-                "this vector environment was closed; create a new one with gym.make_vec(...)."
-            )
-
-    def render(self) -> tuple[Any, ...] | None:
-        """Each environment's ``render()``."""
-        if self.render_mode is None:
-            return None
-        return tuple(self.call("render"))
-
-    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
-        """Call ``name`` (a method, or read an attribute) of every environment.
-
-        ``_max_episode_steps`` answers the step limit, as a ``TimeLimit``-wrapped env
-        made by ``gym.make`` does.
-        """
-        if name == TIME_LIMIT_ATTRIBUTE:
-            return self.get_attr(name)
-        self._check_open()
+    # --- calls and attributes --------------------------------------------------------------
+    def _call(self, indices: list[int], name: str, args: tuple, kwargs: dict) -> list[Any]:
         try:
-            return tuple(self._call(i, name, args, kwargs) for i in range(self.num_envs))
+            return [self._call_one(i, name, args, kwargs) for i in indices]
         finally:
             self._backend.set_models()
 
-    def call_some(
-        self, indices: Sequence[int], name: str, *args: Any, **kwargs: Any
-    ) -> dict[int, Any]:
-        """:meth:`call` on the environments of ``indices`` only; their results by index."""
-        self._check_open()
-        wanted = sorted({check_int("index", i, 0, self.num_envs - 1) for i in indices})
-        try:
-            return {i: self._call(i, name, args, kwargs) for i in wanted}
-        finally:
-            self._backend.set_models()
-
-    def _call(self, i: int, name: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
+    def _call_one(self, i: int, name: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
         """Call ``name`` on environment ``i`` as the batch left it; whatever the call
         changed (a reset, a restored snapshot, a nudged object) goes back into the batch."""
         self._check_open()
@@ -550,17 +452,11 @@ class BatchedVectorEnv(VectorEnv):
         self._load(i)
         return result
 
-    def get_attr(self, name: str) -> tuple[Any, ...]:
-        """The attribute ``name`` of every environment, in order."""
-        if name == TIME_LIMIT_ATTRIBUTE:
-            return (self.max_episode_steps,) * self.num_envs
-        self._check_open()
-        return tuple(getattr(self._unload(i), name) for i in range(self.num_envs))
+    def _get_attr(self, name: str) -> list[Any]:
+        return [getattr(self._unload(i), name) for i in range(self.num_envs)]
 
-    def set_attr(self, name: str, values: list[Any] | tuple[Any, ...] | Any) -> None:
-        """Set ``name`` on every environment: one value each, or the same value for all."""
-        self._check_open()
-        for i, value in enumerate(values_per_env(values, self.num_envs)):
+    def _set_attr(self, name: str, values: list[Any]) -> None:
+        for i, value in enumerate(values):
             setattr(self._unload(i), name, copy.copy(value))
             self._load(i)
         self._backend.set_models()
@@ -579,13 +475,6 @@ class BatchedVectorEnv(VectorEnv):
                 errors.append(exc)
         if errors:
             raise errors[0]
-
-    def close(self, **kwargs: Any) -> None:
-        """Close all environments; idempotent."""
-        if self.closed:
-            return
-        self.closed = True
-        self.close_extras(**kwargs)
 
 
 def _check_batchable(spec: Any) -> None:

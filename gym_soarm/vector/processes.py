@@ -38,23 +38,15 @@ from multiprocessing.reduction import ForkingPickler
 from typing import Any
 
 import numpy as np
-from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space
+from gymnasium.vector import AutoresetMode
 
 from gym_soarm.envs.env import SoArmEnv
 from gym_soarm.envs.infos import INFO_NUMBERS, InfoReader, InfoWriter, merge
 from gym_soarm.validation import check_choice, check_int
+from gym_soarm.vector.base import SoArmVectorBase, StepReturn
 from gym_soarm.vector.common import (
-    TIME_LIMIT_ATTRIBUTE,
     Leaf,
-    batched_obs,
-    check_actions,
     leaf_value,
-    observation_leaves,
-    parse_autoreset_mode,
-    parse_seeds,
-    pop_reset_mask,
-    values_per_env,
 )
 from gym_soarm.vector.workers import START_METHODS, cpu_count, end_process, worker_context
 
@@ -339,7 +331,7 @@ def _exit_text(exitcode: int | None) -> str:
     return f"exit code {exitcode}"
 
 
-class SoArmVectorEnv(VectorEnv):
+class SoArmVectorEnv(SoArmVectorBase):
     """``num_envs`` :class:`~gym_soarm.envs.env.SoArmEnv` simulations stepped in worker processes.
 
     Made by ``gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point")``;
@@ -380,31 +372,16 @@ class SoArmVectorEnv(VectorEnv):
     ) -> None:
         self.closed = True  # until every worker is up
         self._workers: list[_Worker] = []
-        num_envs = check_int("num_envs", num_envs, 1)
+        num_envs = self._check_arguments(num_envs, max_episode_steps, autoreset_mode, copy)
         if num_processes is None:
             num_processes = cpu_count()
         num_processes = min(check_int("num_processes", num_processes, 1), num_envs)
-        if max_episode_steps is not None:
-            max_episode_steps = check_int("max_episode_steps", max_episode_steps, 1)
         if start_method is not None:
             check_choice("start_method", start_method, START_METHODS)
-        self.autoreset_mode = parse_autoreset_mode(autoreset_mode)
-        self.num_envs = num_envs
-        self.copy = bool(copy)
-        self.max_episode_steps = max_episode_steps
 
         # The first environment checks every argument here and gives the spaces.
         first = SoArmEnv(**env_kwargs)
-        self.settings = first.settings
-        """Every environment's settings (:class:`gym_soarm.envs.settings.EnvSettings`)."""
-        self.metadata = dict(first.metadata)  # render_fps: the control rate
-        self.metadata["autoreset_mode"] = self.autoreset_mode
-        self.render_mode = first.render_mode
-        self.single_action_space = first.action_space
-        self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.single_observation_space = first.observation_space
-        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self._leaves = observation_leaves(self.single_observation_space)
+        self._take_spaces(first)
         fields = _layout(num_envs, self.single_action_space.shape, self._leaves)
 
         # Block sizes differ by one at most; this process takes a smallest one, as it
@@ -436,9 +413,7 @@ class SoArmVectorEnv(VectorEnv):
         self._info_reader = InfoReader(self._arrays["infos"], self._rows)
 
         self._obs_arrays = [self._arrays[f"obs{k}"] for k in range(len(self._leaves))]
-        self._autoreset_envs = np.zeros(self.num_envs, dtype=np.bool_)
         self._all_true = np.ones(self.num_envs, dtype=np.bool_)
-        self._started = False
         self.closed = False
 
     def _start_workers(
@@ -494,12 +469,6 @@ class SoArmVectorEnv(VectorEnv):
         return tuple(int(w.process.pid) for w in self._workers)
 
     # --- talking to the workers ---------------------------------------------------------
-    def _check_open(self) -> None:
-        if self.closed:
-            raise RuntimeError(
-                "this vector environment was closed; create a new one with gym.make_vec(...)."
-            )
-
     def _ask(
         self,
         name: str,
@@ -604,32 +573,10 @@ class SoArmVectorEnv(VectorEnv):
         """``values`` (one per environment) cut into each block's share."""
         return [list(values[rows.start : rows.stop]) for rows in self._rows]
 
-    # --- batching ----------------------------------------------------------------------
-    def _batched_obs(self) -> Any:
-        return batched_obs(self._leaves, self._obs_arrays, self.copy)
-
-    # --- Gymnasium API -------------------------------------------------------------------
-    def reset(
-        self,
-        *,
-        seed: int | Sequence[int | None] | None = None,
-        options: dict[str, Any] | None = None,
-    ) -> tuple[Any, dict[str, Any]]:
-        """Reset every environment (or those of ``options["reset_mask"]``).
-
-        Args:
-            seed: None (fresh entropy), an int ``s`` (environment ``i`` gets ``s + i``) or
-                one seed (or None) per environment.
-            options: the reset options of every environment; ``"reset_mask"`` (a bool
-                array of shape ``(num_envs,)``) resets only the marked environments.
-
-        Returns:
-            The batched observations and infos of the environments that were reset.
-        """
-        self._check_open()
-        seeds = parse_seeds(seed, self.num_envs)
-        options = dict(options) if options is not None else None
-        mask = pop_reset_mask(options, self.num_envs)
+    # --- the transport under SoArmVectorBase -------------------------------------------
+    def _reset(
+        self, seeds: list[int | None], options: dict[str, Any] | None, mask: np.ndarray | None
+    ) -> dict[str, Any]:
         shares = self._split(seeds)
         masks = self._split(mask.tolist()) if mask is not None else [None] * len(shares)
         args = [(share, options, part) for share, part in zip(shares, masks, strict=True)]
@@ -637,50 +584,28 @@ class SoArmVectorEnv(VectorEnv):
         reset = self._all_true if mask is None else mask
         self._arrays["terminations"][reset] = False
         self._arrays["truncations"][reset] = False
-        self._autoreset_envs[reset] = False
-        self._started = True
-        return self._batched_obs(), merge(infos, self._all_true, self._add_info)
+        return merge(infos, self._all_true, self._add_info)
 
-    def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        """Step every environment with its row of ``actions`` (shape ``(num_envs, 6)``).
-
-        Returns:
-            Batched observations, rewards (float64), terminations, truncations and infos.
-            With ``NEXT_STEP`` an environment whose episode ended on the previous step is
-            reset instead (reward 0, not terminated or truncated, its reset info). With
-            ``SAME_STEP`` it is reset at once and ``info["final_obs"]`` and
-            ``info["final_info"]`` hold the last observation and info of the episode.
+    def _step(self, actions: np.ndarray) -> StepReturn:
+        """One step of every block at once, each in its process (the blocks apply the
+        time limit and the autoreset to their environments).
 
         Raises:
-            ValueError: actions of another shape, or not finite numbers (nothing is
-                stepped).
             WorkerDiedError: a worker process ended; the vector env is closed.
         """
-        self._check_open()
-        if not self._started:
-            raise RuntimeError("call reset() before step() on the vector environment.")
-        array = check_actions(
-            actions, self.action_space.shape, self.autoreset_mode, self._autoreset_envs
-        )
-        self._arrays["actions"][...] = array
+        self._arrays["actions"][...] = actions
         messages = []
         finals: dict[int, tuple[Any, dict[str, Any]]] = {}
         parts = self._ask("step", [()] * self.num_processes, partial=self._after_failed_step)
         for message, part_finals in parts:
             messages.append(message)
             finals.update(part_finals)
-        merged = self._info_reader.read(messages, self._add_info)
-        for i in sorted(finals):
-            final_obs, final_info = finals[i]
-            merged = self._add_info(merged, {"final_obs": final_obs, "final_info": final_info}, i)
-        terminations = self._arrays["terminations"].copy()
-        truncations = self._arrays["truncations"].copy()
-        self._autoreset_envs = terminations | truncations
+        merged = self._add_finals(self._info_reader.read(messages, self._add_info), finals)
         return (
             self._batched_obs(),
             self._arrays["rewards"].copy(),
-            terminations,
-            truncations,
+            self._arrays["terminations"].copy(),
+            self._arrays["truncations"].copy(),
             merged,
         )
 
@@ -690,53 +615,23 @@ class SoArmVectorEnv(VectorEnv):
         self._info_reader.note([None if part is None else part[0] for part in parts])
         self._autoreset_envs = self._arrays["terminations"] | self._arrays["truncations"]
 
-    def render(self) -> tuple[Any, ...] | None:
-        """Each environment's ``render()``, rendered in its own worker."""
-        if self.render_mode is None:
-            return None
-        return tuple(self.call("render"))
-
-    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
-        """Call ``name`` (a method, or read an attribute) of every environment in its worker.
-
-        ``_max_episode_steps`` answers the step limit, as a ``TimeLimit``-wrapped env
-        made by ``gym.make`` does (LeRobot's evaluation reads it this way). Arguments
-        and results travel between processes, so they must pickle.
-
-        Returns:
-            One result per environment, in order.
-        """
-        if name == TIME_LIMIT_ATTRIBUTE:
-            return self.get_attr(name)
-        shares = [(name, args, kwargs)] * self.num_processes
-        return tuple(r for part in self._ask("call", shares) for r in part)
-
-    def call_some(
-        self, indices: Sequence[int], name: str, *args: Any, **kwargs: Any
-    ) -> dict[int, Any]:
-        """:meth:`call` on the environments of ``indices`` only; their results by index.
-
-        Raises:
-            ValueError: an index outside ``0 .. num_envs - 1``.
-        """
-        wanted = set()
-        for index in indices:
-            wanted.add(check_int("index", index, 0, self.num_envs - 1))
-        mask = [i in wanted for i in range(self.num_envs)]
-        shares = [(name, args, kwargs, part) for part in self._split(mask)]
+    # --- calls and attributes (arguments and results travel between processes: they
+    # must pickle) ---------------------------------------------------------------------------
+    def _call(self, indices: list[int], name: str, args: tuple, kwargs: dict) -> list[Any]:
+        if len(indices) == self.num_envs:
+            shares: list[tuple[Any, ...]] = [(name, args, kwargs)] * self.num_processes
+        else:
+            wanted = set(indices)
+            mask = [i in wanted for i in range(self.num_envs)]
+            shares = [(name, args, kwargs, part) for part in self._split(mask)]
         results = [r for part in self._ask("call", shares) for r in part]
-        return {i: results[i] for i in sorted(wanted)}
+        return [results[i] for i in indices]
 
-    def get_attr(self, name: str) -> tuple[Any, ...]:
-        """The attribute ``name`` of every environment, in order."""
-        if name == TIME_LIMIT_ATTRIBUTE:
-            return (self.max_episode_steps,) * self.num_envs
+    def _get_attr(self, name: str) -> list[Any]:
         shares = [(name,)] * self.num_processes
-        return tuple(r for part in self._ask("get_attr", shares) for r in part)
+        return [r for part in self._ask("get_attr", shares) for r in part]
 
-    def set_attr(self, name: str, values: list[Any] | tuple[Any, ...] | Any) -> None:
-        """Set ``name`` on every environment: one value each, or the same value for all."""
-        values = values_per_env(values, self.num_envs)
+    def _set_attr(self, name: str, values: list[Any]) -> None:
         self._ask("set_attr", [(name, share) for share in self._split(values)])
 
     def close_extras(self, **kwargs: Any) -> None:
@@ -745,13 +640,6 @@ class SoArmVectorEnv(VectorEnv):
             self._local.close()
         finally:
             self._finalizer()  # _stop_workers, once
-
-    def close(self, **kwargs: Any) -> None:
-        """Close all environments and end every worker process; idempotent."""
-        if self.closed:
-            return
-        self.closed = True
-        self.close_extras(**kwargs)
 
 
 __all__ = ["SoArmVectorEnv", "WorkerDiedError"]
