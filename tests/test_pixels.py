@@ -5,6 +5,7 @@ refused, and bad input fails before anything trains (behaviour, never success ra
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import json
 import os
@@ -192,6 +193,60 @@ def test_pixel_dagger_writes_a_folder_with_its_image_settings(dagger_lift):
     assert settings["env"]["obs_type"] == "pixels_agent_pos"
     rows = (dagger_lift / "curve.csv").read_text().splitlines()
     assert rows[0].startswith("round,") and len(rows) == 3  # header, rounds 0 and 1
+    # The auxiliary head (what the expert reads: the jaws, the cube from them, its yaw)
+    # is saved with the network and its estimate feeds the action's MLP.
+    import torch
+
+    layout = torch.load(dagger_lift / PIXEL_MODEL_FILE, weights_only=True)["layout"]
+    assert layout["aux_dim"] == 8 and layout["aux_input"] is True
+
+
+def test_a_pixel_model_without_the_auxiliary_head_still_loads_and_acts(tmp_path):
+    # model.pt as the package wrote it before the auxiliary targets: no aux keys.
+    import torch
+
+    from gym_soarm.rl.pixels import build_network
+
+    cameras = ["front_camera", "wrist_camera"]
+    net = build_network(cameras, 6, (4, 4, 4, 4), (16,), downsample=2)
+    layout = {"cameras": cameras, "height": 48, "width": 64, "act_dim": 6,
+              "channels": [4, 4, 4, 4], "hidden": [16], "downsample": 2}  # fmt: skip
+    scale_offset = torch.stack([torch.ones(6), torch.zeros(6)])
+    torch.save(
+        {"layout": layout, "weights": net.state_dict(), "mean": torch.zeros(18),
+         "std": torch.ones(18), "command_of_pos": scale_offset},
+        tmp_path / PIXEL_MODEL_FILE,
+    )  # fmt: skip
+    policy = PixelPolicy.load(tmp_path)
+    obs = {
+        "pixels": {camera: np.full((48, 64, 3), 90, np.uint8) for camera in cameras},
+        "agent_pos": np.zeros(6, np.float32),
+    }
+    action = policy(obs)
+    assert action.shape == (6,) and np.all(np.abs(action) <= 1.0)
+    assert policy.net.aux is None
+
+
+def test_pixel_dagger_stops_once_its_evaluation_stops_rising(tmp_path):
+    out = tmp_path / "patience"
+    done = _cli(
+        "gym_soarm.train", "--algo", "dagger", "--task", "lift", "--seed", "0",
+        *PIXELS, *SIZE, "--eval-episodes", "1", "--out", str(out),
+        "--hyperparams", *TINY, "rounds=4", "patience=1", "episodes_per_round=1",
+        "round_epochs=1",
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    with open(out / "curve.csv") as stream:
+        rates = [float(row["success_rate"]) for row in csv.DictReader(stream)]
+    # Round r runs while the best so far is under 100 % and the last round beat it.
+    expected = 1
+    while (
+        expected <= 4
+        and max(rates[:expected]) < 1.0
+        and (expected == 1 or rates[expected - 1] > max(rates[: expected - 1]))
+    ):
+        expected += 1
+    assert len(rates) == min(expected, 5) < 5
 
 
 def test_pixel_policy_acts_on_rendered_observations_and_is_scored(dagger_lift):
