@@ -251,8 +251,11 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
 imitation recipes, the network given by ``channels`` (the four convolutions of each
 camera's encoder) and ``hidden`` (the MLP), ``downsample`` (an average pooling of the
 images by this factor before the encoder: cheaper convolutions), ``shift_px`` (random-shift
-augmentation, in pixels of the stored image) and ``max_memory_gb`` (the bound on the
-stored frames)."""
+augmentation, in pixels of the stored image), ``max_memory_gb`` (the bound on the
+stored frames), ``aux_weight`` (the weight of the auxiliary targets' loss: what the state
+expert reads, predicted from the images; 0 turns them off), ``aux_input`` (their estimate
+also feeds the action's MLP) and, for DAgger, ``patience`` (the rounds stop once this many
+in a row fail to beat the best evaluation)."""
 
 
 def pixel_recipe(algo: str, task: str) -> dict[str, Any]:
