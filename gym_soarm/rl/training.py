@@ -305,6 +305,30 @@ def train(
     # (spinning) whenever other processes share the cores.
     torch.set_num_threads(settings["torch_threads"])
     env_kwargs = dict(settings["env"])
+    folder, source = _start_folder(out_path, algo, spec, seed, steps, settings, init)
+    venv = _vector_env(spec.name, env_kwargs, settings, seed)
+    try:
+        model = _model(algo, venv, seed, settings, source)
+        run = _Run(folder, spec.name, env_kwargs, episodes, model)
+        with folder:
+            run.learn(steps, eval_every, progress_bar)
+    finally:
+        venv.close()
+    return folder.result(model.num_timesteps, run.last_rate)
+
+
+def _start_folder(
+    out_path: Path,
+    algo: str,
+    spec: Any,
+    seed: int,
+    steps: int,
+    settings: dict[str, Any],
+    init: Any,
+) -> tuple[RunFolder, dict[str, Any] | None]:
+    """The run's folder with its ``settings.json``, and the checked ``--init`` folder's
+    settings (None without one)."""
+    env_kwargs = dict(settings["env"])
     probe = make_env(spec.name, env_kwargs)
     observation_names = list(probe.unwrapped.observation_names)
     probe.close()
@@ -329,15 +353,7 @@ def train(
             **({} if init is None else {"init": str(init)}),
         },
     )
-    venv = _vector_env(spec.name, env_kwargs, settings, seed)
-    try:
-        model = _model(algo, venv, seed, settings, source)
-        run = _Run(folder, spec.name, env_kwargs, episodes, model)
-        with folder:
-            run.learn(steps, eval_every, progress_bar)
-    finally:
-        venv.close()
-    return folder.result(model.num_timesteps, run.last_rate)
+    return folder, source
 
 
 def _checked_settings(
