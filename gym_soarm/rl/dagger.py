@@ -142,6 +142,12 @@ class ImitationTrainer:
         self.best = -1.0
         self.learning = False
         self.venv: gym.vector.VectorEnv | None = None
+        self.title = f"{algo} on {spec.name}, seed {seed}"
+        self.setup()
+        folder.title = self.title
+
+    def setup(self) -> None:
+        """The student's own state (a subclass's), made at the end of ``__init__``."""
 
     @property
     def out_path(self) -> Path:
@@ -270,8 +276,6 @@ class ImitationTrainer:
         self.save()
 
     # ----------------------------------------------------------------------- the student
-    title = "imitation"
-
     def stored(self) -> int:
         """The number of steps stored."""
         raise NotImplementedError

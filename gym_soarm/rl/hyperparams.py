@@ -281,6 +281,20 @@ def _merged(table: dict[str, dict[str, Any]], task: str) -> dict[str, Any]:
     return merged
 
 
+def override(settings: dict[str, Any], hyperparams: dict[str, Any] | None, algo: str) -> None:
+    """Replace values of ``settings["algo"]`` by ``hyperparams`` (copied); a ValueError
+    naming the valid keys when one is not a key of the recipe (nothing changed then)."""
+    if not hyperparams:
+        return
+    unknown = sorted(set(hyperparams) - set(settings["algo"]))
+    if unknown:
+        raise ValueError(
+            f"hyperparams {unknown} are not keys of the {algo} recipe; valid: "
+            f"{', '.join(sorted(settings['algo']))}."
+        )
+    settings["algo"].update(copy.deepcopy(hyperparams))
+
+
 def recipe(algo: str, task: str) -> dict[str, Any]:
     """The settings of ``algo`` on ``task``: the algorithm's default merged with the task's row.
 

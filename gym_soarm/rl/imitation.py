@@ -68,7 +68,7 @@ from gym_soarm.rl.evaluation import (
     make_env,
     require_sb3,
 )
-from gym_soarm.rl.hyperparams import IMITATION, pixel_recipe, recipe
+from gym_soarm.rl.hyperparams import IMITATION, override, pixel_recipe, recipe
 from gym_soarm.rl.pixel_training import PixelTrainer
 from gym_soarm.rl.pixels import (
     PIXEL_MODEL_FILE,
@@ -322,14 +322,7 @@ def train_imitation(
     seed = check_int("seed", seed, 0)
     if eval_episodes is not None:
         settings["eval_episodes"] = eval_episodes
-    if hyperparams:
-        unknown = sorted(set(hyperparams) - set(settings["algo"]))
-        if unknown:
-            raise ValueError(
-                f"hyperparams {unknown} are not keys of the {algo} recipe; valid: "
-                f"{', '.join(sorted(settings['algo']))}."
-            )
-        settings["algo"].update(copy.deepcopy(hyperparams))
+    override(settings, hyperparams, algo)
     settings = check_pixel_settings(algo, settings) if pixels else check_settings(algo, settings)
     out_path = Path(out)
     if out_path.exists() and not out_path.is_dir():
@@ -353,22 +346,13 @@ class StateTrainer(ImitationTrainer):
 
     rng_stream = 22
 
-    def __init__(
-        self,
-        algo: str,
-        spec: Any,
-        folder: RunFolder,
-        seed: int,
-        settings: dict[str, Any],
-        device: str = "cpu",
-    ) -> None:
+    def setup(self) -> None:
         import torch
 
-        super().__init__(algo, spec, folder, seed, settings, device)
-        torch.set_num_threads(settings["torch_threads"])
-        self.generator = torch.Generator().manual_seed(seed)
-        self.title = f"{algo.upper() if algo == 'bc' else 'DAgger'} on {spec.name}, seed {seed}"
-        folder.title = self.title
+        torch.set_num_threads(self.settings["torch_threads"])
+        self.generator = torch.Generator().manual_seed(self.seed)
+        kind = "BC" if self.algo == "bc" else "DAgger"
+        self.title = f"{kind} on {self.spec.name}, seed {self.seed}"
         self.data: Dataset | None = None
         self._new: list[Dataset] = []
         self.normalizer: Any = None

@@ -60,18 +60,10 @@ class PixelTrainer(ImitationTrainer):
 
     rng_stream = 25
 
-    def __init__(
-        self,
-        algo: str,
-        spec: Any,
-        folder: RunFolder,
-        seed: int,
-        settings: dict[str, Any],
-        device: str = "cpu",
-    ) -> None:
+    def setup(self) -> None:
         import torch  # before any GL context: see docs/learning.md (torch and Mesa's LLVM)
 
-        super().__init__(algo, spec, folder, seed, settings, device)
+        algo, spec, settings, seed = self.algo, self.spec, self.settings, self.seed
         self.cameras, self.height, self.width, per_sample, worst, budget = store_bound(
             algo, spec, settings
         )

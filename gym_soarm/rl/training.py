@@ -48,7 +48,14 @@ from gym_soarm.rl.evaluation import (
     require_sb3,
     score,
 )
-from gym_soarm.rl.hyperparams import ALGORITHMS, IMITATION, POLICY_CLASSES, VEC_ENVS, recipe
+from gym_soarm.rl.hyperparams import (
+    ALGORITHMS,
+    IMITATION,
+    POLICY_CLASSES,
+    VEC_ENVS,
+    override,
+    recipe,
+)
 from gym_soarm.rl.runs import RunFolder
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
@@ -376,14 +383,7 @@ def _checked_settings(
         raise ValueError(f"init (--init) starts PPO only; got --algo {algo}. Pass --algo ppo.")
     if vec_env is not None:
         settings["vec_env"] = check_choice("vec_env", vec_env, VEC_ENVS)
-    if hyperparams:
-        unknown = sorted(set(hyperparams) - set(settings["algo"]))
-        if unknown:
-            raise ValueError(
-                f"hyperparams {unknown} are not arguments of the {algo} recipe; valid: "
-                f"{', '.join(sorted(settings['algo']))}."
-            )
-        settings["algo"].update(hyperparams)
+    override(settings, hyperparams, algo)
     return settings
 
 
