@@ -2,7 +2,9 @@
 
 Importing the package registers an environment id per task of the registry
 (:mod:`gym_soarm.tasks`), ``gym_soarm/<Task>-v0``, plus the original ``SoArm-v0``
-(pick and place; also ``gym_soarm/SoArm-v0``). :data:`ENV_IDS` lists them all.
+(pick and place; also ``gym_soarm/SoArm-v0``), and the preset
+``gym_soarm/SO101Tabletop-v0``. :data:`ENV_IDS` lists them all, :data:`TASK_ENV_IDS` the
+tasks' own (every ``gym.make`` keyword works with those).
 
 Layout (``docs/architecture.md``): ``sim/`` (scene, physics, arrays, backends),
 ``tasks/`` and ``expert/`` (tasks with their experts), ``envs/`` (the step core and the
@@ -55,6 +57,7 @@ from gym_soarm.render.video import save_frames_to_mp4  # noqa: E402
 from gym_soarm.sim.meshes import MeshError  # noqa: E402
 from gym_soarm.tasks import (  # noqa: E402
     ENV_IDS,
+    TASK_ENV_IDS,
     TaskSpec,
     get_task,
     register_task,
@@ -77,6 +80,7 @@ def make_expert(env: Any, config: Any = None, kind: str = "state") -> Any:
 __all__ = [
     "ENV_IDS",
     "TABLETOP_ID",
+    "TASK_ENV_IDS",
     "DisplayUnavailableError",
     "GLBackendError",
     "MeshError",

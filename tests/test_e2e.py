@@ -17,7 +17,7 @@ from gym_soarm import constants
 from gym_soarm.sim import meshes
 from gym_soarm.tasks import cube, placement
 
-ALL_IDS = list(gym_soarm.ENV_IDS)
+ALL_IDS = list(gym_soarm.TASK_ENV_IDS)
 # Actions are absolute joint targets in radians bounded by the servo ranges (by design),
 # so Gymnasium's advice to normalise the action Box to [-1, 1] does not apply.
 ACTION_ADVICE = ".*For Box action spaces, we recommend using a symmetric and normalized space"

@@ -42,7 +42,7 @@ def _check_observation(env: gym.Env, obs, cameras: tuple[str, ...], obs_type: st
 
 @pytest.mark.parametrize("camera_config", list(constants.CAMERA_CONFIGS))
 @pytest.mark.parametrize("obs_type", OBS_TYPES)
-@pytest.mark.parametrize("env_id", list(gym_soarm.ENV_IDS))
+@pytest.mark.parametrize("env_id", list(gym_soarm.TASK_ENV_IDS))
 def test_every_id_obs_type_and_camera_config_resets_steps_and_closes(
     env_id, obs_type, camera_config
 ):
@@ -82,7 +82,7 @@ def test_every_id_obs_type_and_camera_config_resets_steps_and_closes(
 
 
 @pytest.mark.parametrize("units", UNITS)
-@pytest.mark.parametrize("env_id", list(gym_soarm.ENV_IDS))
+@pytest.mark.parametrize("env_id", list(gym_soarm.TASK_ENV_IDS))
 def test_every_id_and_joint_unit_keeps_observations_in_their_spaces(env_id, units):
     env = gym.make(env_id, obs_type="environment_state_agent_pos", units=units)
     try:

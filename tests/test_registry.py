@@ -235,3 +235,12 @@ def test_physics_accessors_refuse_unknown_names():
         assert physics.object_height("tall_block") == pytest.approx(0.0, abs=1e-3)
     finally:
         env.close()
+
+
+def test_env_ids_are_every_registered_gym_soarm_id():
+    registered = {env_id for env_id in gym.registry if env_id.startswith("gym_soarm/")}
+    registered |= {env_id for env_id in gym.registry if env_id == "SoArm-v0"}
+    assert set(gym_soarm.ENV_IDS) == registered
+    assert gym_soarm.ENV_IDS[gym_soarm.TABLETOP_ID] == ("PutCubesInBox-v0", 1200)
+    assert gym_soarm.TABLETOP_ID not in gym_soarm.TASK_ENV_IDS
+    assert set(gym_soarm.TASK_ENV_IDS) == set(gym_soarm.ENV_IDS) - {gym_soarm.TABLETOP_ID}

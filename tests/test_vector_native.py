@@ -99,7 +99,7 @@ def compare_with_sync(
 
 
 def test_every_id_has_the_vector_entry_point():
-    for env_id in gym_soarm.ENV_IDS:
+    for env_id in gym_soarm.TASK_ENV_IDS:
         assert gym.spec(env_id).vector_entry_point == "gym_soarm.vector.batched:make_vector_env"
 
 

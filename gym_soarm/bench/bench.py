@@ -78,7 +78,8 @@ DEFAULT_CONFIGS: tuple[str, ...] = (
 )
 DEFAULT_SECONDS = 3.0
 DEFAULT_REPEATS = 3
-DEFAULT_JSON = "gym_soarm_bench.json"
+DEFAULT_JSON = "bench_results.json"
+"""Where the results go without --json: a name the repository ignores, so the checkout stays clean."""
 DEFAULT_CONTROL_MODE = "joint_pos"
 ACTION_SEED = 0
 N_ACTIONS = 1024  # random actions drawn up front and cycled, so drawing costs nothing

@@ -23,6 +23,7 @@ from gymnasium import spaces
 from gym_soarm.envs.env import SoArmEnv
 from gym_soarm.tasks.put_cubes_in_box import COLOURS
 from gym_soarm.tasks.put_cubes_in_box import SPEC as TABLETOP_TASK
+from gym_soarm.tasks.registry import register_preset_id
 
 TABLETOP_ID = "gym_soarm/SO101Tabletop-v0"
 TABLETOP_STEPS = 1200
@@ -104,6 +105,7 @@ def register_presets() -> None:
             entry_point="gym_soarm.envs.presets:make_tabletop",
             max_episode_steps=TABLETOP_STEPS,
         )
+    register_preset_id(TABLETOP_ID, TABLETOP_TASK.name, TABLETOP_STEPS)
 
 
 __all__ = [

@@ -13,6 +13,7 @@ import importlib
 from gym_soarm.tasks.base import StateField, Task, TaskSpec
 from gym_soarm.tasks.registry import (
     ENV_IDS,
+    TASK_ENV_IDS,
     get_task,
     register_task,
     task_names,
@@ -49,6 +50,7 @@ __all__ = [
     "BUILTIN_TASK_MODULES",
     "DEFAULT_TASK",
     "ENV_IDS",
+    "TASK_ENV_IDS",
     "StateField",
     "Task",
     "TaskSpec",

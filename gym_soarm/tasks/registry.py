@@ -21,9 +21,19 @@ VECTOR_ENTRY_POINT = "gym_soarm.vector.batched:make_vector_env"
 _TASKS: dict[str, TaskSpec] = {}
 _SPELLINGS: dict[str, str] = {}  # name, alias or env id -> name
 _ENV_IDS: dict[str, tuple[str, int]] = {}
+_TASK_ENV_IDS: dict[str, tuple[str, int]] = {}
 
 ENV_IDS: Mapping[str, tuple[str, int]] = MappingProxyType(_ENV_IDS)
-"""Every registered gym id -> (task name, max_episode_steps), kept up to date."""
+"""Every registered gym id -> (task name, max_episode_steps), kept up to date: the tasks'
+ids and the presets' (``gym_soarm/SO101Tabletop-v0``)."""
+TASK_ENV_IDS: Mapping[str, tuple[str, int]] = MappingProxyType(_TASK_ENV_IDS)
+"""The tasks' own gym ids (every ``gym.make`` keyword works with them), without the
+presets, whose observations are fixed."""
+
+
+def register_preset_id(env_id: str, task: str, max_episode_steps: int) -> None:
+    """Record a preset's gym id (registered by the caller) in :data:`ENV_IDS`."""
+    _ENV_IDS[env_id] = (get_task(task).name, int(max_episode_steps))
 
 
 def register_task(spec: TaskSpec) -> TaskSpec:
@@ -76,7 +86,7 @@ def register_task(spec: TaskSpec) -> TaskSpec:
     for spelling in spellings:
         _SPELLINGS[spelling] = spec.name
     for env_id in spec.env_ids:
-        _ENV_IDS[env_id] = (spec.name, spec.max_episode_steps)
+        _ENV_IDS[env_id] = _TASK_ENV_IDS[env_id] = (spec.name, spec.max_episode_steps)
     return spec
 
 
@@ -92,6 +102,7 @@ def unregister_task(name: str) -> TaskSpec:
         del _SPELLINGS[spelling]
     for env_id in spec.env_ids:
         _ENV_IDS.pop(env_id, None)
+        _TASK_ENV_IDS.pop(env_id, None)
         registry.pop(env_id, None)
     return spec
 

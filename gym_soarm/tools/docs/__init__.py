@@ -34,6 +34,16 @@ def env_table() -> str:
         rows.append(
             f"| {ids} | {spec.summary} | {instruction} | {spec.max_episode_steps} | {start} |"
         )
+    from gym_soarm.tasks import ENV_IDS, TASK_ENV_IDS
+
+    for env_id, (name, steps) in ENV_IDS.items():
+        if env_id not in TASK_ENV_IDS:
+            spec = get_task(name)
+            rows.append(
+                f"| `{env_id}` | preset: `{name}` as LeRobot's tabletop contract (cameras "
+                f"`front` and `wrist`, follower units, 30 fps) | {spec.instructions[0]} | "
+                f"{steps} | anywhere in a region |"
+            )
     return "\n".join(rows)
 
 

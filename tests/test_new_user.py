@@ -1,0 +1,49 @@
+"""What a new user meets first: the extras install nothing harmful, the documented
+commands leave the checkout clean, the README and the LeRobot page record to different
+folders, and every gym id is listed."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+from pathlib import Path
+
+import pytest
+from packaging.requirements import Requirement
+
+from gym_soarm.bench import bench
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_the_lerobot_extra_installs_nothing_below_python_3_12():
+    tomllib = pytest.importorskip("tomllib")  # Python 3.11+
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    requirements = [Requirement(r) for r in extras["optional-dependencies"]["lerobot"]]
+    assert requirements and all(r.marker is not None for r in requirements)
+    for requirement in requirements:
+        assert not requirement.marker.evaluate({"python_version": "3.11"})
+        assert requirement.marker.evaluate({"python_version": "3.12"})
+
+
+def test_the_benchmark_writes_its_results_where_git_does_not_look():
+    if not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout")
+    assert _ignored(bench.DEFAULT_JSON)
+    tracked = subprocess.run(
+        ["git", "ls-files", "--", "*.json"], cwd=ROOT, capture_output=True, text=True, check=True
+    ).stdout.split()
+    assert not [path for path in tracked if "/" not in path], "a JSON file at the root"
+
+
+def _ignored(path: str) -> bool:
+    done = subprocess.run(["git", "check-ignore", "-q", path], cwd=ROOT)
+    return done.returncode == 0
+
+
+def test_the_readme_and_the_lerobot_page_record_into_different_folders():
+    def roots(page: str) -> set[str]:
+        return set(re.findall(r"--root (\S+)", (ROOT / page).read_text()))
+
+    readme, lerobot = roots("README.md"), roots("docs/lerobot.md")
+    assert readme and lerobot and not readme & lerobot
