@@ -103,16 +103,25 @@ def run_episode(
     return frames, success_step
 
 
+def _task_name(value: str) -> str:
+    """A task's name from its name, alias (``lift``) or gym id; argparse's error otherwise."""
+    try:
+        return gym_soarm.get_task(value).name
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument(
         "--task",
-        choices=task_names(),
+        type=_task_name,
         default=DEFAULT_TASK,
         metavar="TASK",
-        help=f"the task: {', '.join(task_names())} (default: {DEFAULT_TASK})",
+        help=f"the task, by name, alias or gym id: {', '.join(task_names())} "
+        f"(default: {DEFAULT_TASK})",
     )
     parser.add_argument("--episodes", type=int, default=1, help="episodes to record (default: 1)")
     parser.add_argument(

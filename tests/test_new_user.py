@@ -47,3 +47,24 @@ def test_the_readme_and_the_lerobot_page_record_into_different_folders():
 
     readme, lerobot = roots("README.md"), roots("docs/lerobot.md")
     assert readme and lerobot and not readme & lerobot
+
+
+def test_the_example_takes_a_task_by_name_alias_or_id(monkeypatch):
+    monkeypatch.syspath_prepend(str(ROOT / "examples"))
+    import example
+
+    for spelling in ("lift", "LiftCube-v0", "gym_soarm/LiftCube-v0"):
+        assert example.parse_args(["--task", spelling]).task == "LiftCube-v0"
+    with pytest.raises(SystemExit) as refused:
+        example.parse_args(["--task", "lfit"])
+    assert refused.value.code == 2
+
+
+def test_an_unknown_gym_make_keyword_names_the_closest_ones_and_the_keyword_page():
+    import gymnasium as gym
+
+    import gym_soarm  # noqa: F401
+
+    with pytest.raises(ValueError, match=r"\['camera'\]\. Did you mean camera_config") as error:
+        gym.make("gym_soarm/LiftCube-v0", camera="front")
+    assert "docs/keywords.md" in str(error.value) and isinstance(error.value, TypeError)

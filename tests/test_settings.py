@@ -49,6 +49,7 @@ def test_the_fields_are_exactly_the_keywords_of_the_environment():
     parameters = dict(inspect.signature(SoArmEnv.__init__).parameters)
     parameters.pop("self")
     parameters.pop("settings")
+    assert parameters.pop("unknown").kind is inspect.Parameter.VAR_KEYWORD  # refused by name
     assert list(parameters) == list(NAMES)
     for item in dataclasses.fields(EnvSettings):
         assert parameters[item.name].default == item.default, item.name

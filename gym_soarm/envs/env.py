@@ -212,8 +212,11 @@ class SoArmEnv(gym.Env):
         normalize_actions: bool = False,
         control_hz: int = DEFAULT_CONTROL_HZ,
         settings: EnvSettings | None = None,
+        **unknown: Any,
     ) -> None:
         keywords = _keywords(locals())
+        if unknown:  # an error naming the closest keywords, before anything is built
+            EnvSettings.from_kwargs(**keywords, **unknown)
         if settings is not None:
             if not isinstance(settings, EnvSettings):
                 raise ArgumentTypeError(

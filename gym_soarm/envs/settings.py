@@ -22,6 +22,7 @@ not here: a settings object can travel to a machine that holds them elsewhere.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import json
 import os
 from collections.abc import Callable, Mapping, Sequence
@@ -294,9 +295,18 @@ class EnvSettings:
         that lists the known ones."""
         unknown = sorted(set(kwargs) - set(cls.names()))
         if unknown:
-            raise TypeError(
-                f"unknown gym_soarm environment keyword(s) {unknown}; the keywords are "
-                f"{', '.join(cls.names())}. Check the spelling (see docs/keywords.md)."
+            close = sorted(
+                {
+                    m
+                    for name in unknown
+                    for m in difflib.get_close_matches(name, cls.names(), 3, 0.5)
+                }
+            )
+            hint = f" Did you mean {', '.join(close)}?" if close else ""
+            raise ArgumentTypeError(
+                f"unknown gym_soarm environment keyword(s) {unknown}.{hint} The keywords are "
+                f"{', '.join(cls.names())}; each is described with its values in "
+                "docs/keywords.md."
             )
         return cls(**kwargs)
 
