@@ -98,7 +98,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     result["policy"] = args.policy
     print(
         f"{task}: success {100 * result['success_rate']:.0f} % over {result['episodes']} "
-        f"episodes (seeds {result['seeds'][0]}-{result['seeds'][-1]}), mean return "
+        f"episode{'' if result['episodes'] == 1 else 's'} (seeds {result['seeds'][0]}-{result['seeds'][-1]}), mean return "
         f"{result['mean_return']:.2f}"
     )
     if args.json is not None:

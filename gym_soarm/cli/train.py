@@ -158,10 +158,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                 ("--init", args.init),
             ):
                 if value is not None:
+                    why = (
+                        "--init starts PPO from a policy folder (--algo ppo --init DIR); a "
+                        f"{args.algo} run always starts from the expert's demonstrations"
+                        if flag == "--init"
+                        else "its sizes are the recipe's demos, rounds and episodes_per_round:"
+                        " --hyperparams demos=N ..."
+                    )
                     raise ValueError(
-                        f"{flag} does not apply to --algo {args.algo} (its sizes are the "
-                        "recipe's demos, rounds and episodes_per_round: --hyperparams "
-                        "demos=N ...); drop it."
+                        f"{flag} does not apply to --algo {args.algo} ({why}); drop it."
                     )
             from gym_soarm.rl.imitation import train_imitation
 

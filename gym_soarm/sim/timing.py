@@ -66,8 +66,8 @@ def check_control_hz(name: str, value: Any) -> int:
         )
     if not value > 0 or value != int(value) or int(value) not in control_rates():
         raise ValueError(
-            f"{name} must be a control rate whose period a whole number of physics steps "
-            f"(2 ms or 1/600 s) fills; got {value!r}. Rates that work: {rates} "
+            f"{name} must be a control rate whose period is a whole number of physics steps "
+            f"(of 2 ms or 1/600 s); got {value!r}. Rates that work: {rates} "
             "(30 for LeRobot's SO-101 datasets, 50 by default)."
         )
     return int(value)

@@ -112,6 +112,11 @@ def task_names() -> tuple[str, ...]:
     return tuple(_TASKS)
 
 
+def task_aliases() -> tuple[str, ...]:
+    """Every task's short aliases (``lift``, ``reach`` ...), in registration order."""
+    return tuple(s for s, n in _SPELLINGS.items() if s != n and "/" not in s and "-v" not in s)
+
+
 def task_spellings() -> tuple[str, ...]:
     """Every accepted spelling: names, aliases and gym ids."""
     return tuple(_SPELLINGS)
@@ -129,7 +134,7 @@ def get_task(name: str) -> TaskSpec:
         )
     resolved = _SPELLINGS.get(name)
     if resolved is None:
-        aliases = [s for s, n in _SPELLINGS.items() if s != n and "/" not in s and "-v" not in s]
+        aliases = task_aliases()
         raise ValueError(
             f"task must be one of {', '.join(_TASKS)} (or an alias: {', '.join(aliases)}, or a "
             f"gym id); got {name!r}. Register a new task with gym_soarm.register_task(spec)."

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
-from gym_soarm.tasks.registry import get_task, task_names
+from gym_soarm.tasks.registry import get_task, task_aliases, task_names
 from gym_soarm.validation import ArgumentTypeError
 
 EVAL_SEED = 1000
@@ -164,7 +164,8 @@ def resolve_selection(selection: str) -> tuple[SelectedTask, ...]:
             task = get_task(name).name
         except ValueError:
             raise ValueError(
-                f"task must be a task ({', '.join(task_names())}), a suite "
+                f"task must be a task name ({', '.join(task_names())}), one of their aliases "
+                f"({', '.join(task_aliases())}), a gym id, a suite "
                 f"({', '.join(SUITE_NAMES)}) or a comma list of them; got {name!r}."
             ) from None
         _add(groups, TASK_GROUP, task, {})
