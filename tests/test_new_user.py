@@ -68,3 +68,22 @@ def test_an_unknown_gym_make_keyword_names_the_closest_ones_and_the_keyword_page
     with pytest.raises(ValueError, match=r"\['camera'\]\. Did you mean camera_config") as error:
         gym.make("gym_soarm/LiftCube-v0", camera="front")
     assert "docs/keywords.md" in str(error.value) and isinstance(error.value, TypeError)
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["gym_soarm.train", "--algo", "bc", "--task", "lift", "--steps", "5", "--out", "x"],
+        ["gym_soarm.evaluate", "--task", "nope", "--episodes", "1"],
+        ["gym_soarm.record", "--task", "nope", "--episodes", "1"],
+        ["gym_soarm.expert", "--task", "nope"],
+    ],
+)
+def test_refused_input_exits_with_argparse_s_usage_code(argv, tmp_path):
+    import sys
+
+    done = subprocess.run(
+        [sys.executable, "-m", *argv], cwd=tmp_path, capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 2, done.stderr
+    assert "error:" in done.stderr and not list(tmp_path.iterdir())

@@ -76,7 +76,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     from gym_soarm.rl.evaluation import TrainedPolicy, score
 
     try:
@@ -93,7 +94,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             task, base, policy = trained.task, trained.settings["env"], trained
         kwargs = env_kwargs(args, base, task)
         result = score(task, kwargs, policy, args.episodes, args.first_seed)
-    except (ValueError, TypeError, ImportError) as exc:
+    except (ValueError, TypeError) as exc:  # refused input: argparse's usage error, exit 2
+        parser.error(str(exc))
+    except ImportError as exc:  # a missing extra
         raise SystemExit(f"python -m gym_soarm.evaluate: error: {exc}") from None
     result["policy"] = args.policy
     print(

@@ -225,7 +225,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.gamepad is not None:
         try:
             gamepad = Gamepad(args.gamepad)
-        except (RuntimeError, ValueError) as exc:
+        except ValueError as exc:  # refused input: argparse's usage error, exit 2
+            parser.error(f"--gamepad: {exc}")
+        except RuntimeError as exc:  # the device failed to open
             print(f"--gamepad: {exc}", file=sys.stderr)
             return 1
         print(f"gamepad {gamepad.name!r}", flush=True)

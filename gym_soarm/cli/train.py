@@ -147,7 +147,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Train; 0 when the run finished, 130 when Ctrl-C stopped it (checkpoint kept)."""
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", force=True)
     try:
         if args.algo in IMITATION:
@@ -206,7 +207,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 init=args.init,
                 env=env_changes(args),
             )
-    except (ValueError, TypeError, ImportError) as exc:
+    except (ValueError, TypeError) as exc:  # refused input: argparse's usage error, exit 2
+        parser.error(str(exc))
+    except ImportError as exc:  # a missing extra
         raise SystemExit(f"python -m gym_soarm.train: error: {exc}") from None
     rate = "n/a" if result.success_rate is None else f"{100 * result.success_rate:.0f} %"
     state = "interrupted" if result.interrupted else "done"
