@@ -328,3 +328,19 @@ def test_a_bad_dataset_is_refused_and_nothing_is_written(recorded, tmp_path, cap
     with pytest.raises(SystemExit):
         main(["--root", str(root), "--out", str(tmp_path / "no" / "x.json")])
     assert "does not exist" in capsys.readouterr().err
+
+
+@needs_toolbox
+def test_a_fit_that_cannot_improve_keeps_the_model_s_own_figures(tmp_path, capsys):
+    # Recorded by the simulation's own model, the start is exact: the result may not be worse.
+    root = tmp_path / "own"
+    record(root, task="ReachTarget-v0", episodes=6, seed=3, camera_config="none")
+    out = tmp_path / "arm.json"
+    assert main(["--root", str(root), "--out", str(out), "--iterations", "2"]) == 0
+    fit = load_dynamics(out).fit
+    assert fit["overall_rms_after_deg"] <= fit["overall_rms_before_deg"]
+    for name in constants.JOINT_NAMES:
+        assert fit["rms_after_deg"][name] <= fit["rms_before_deg"][name] + 1e-9, name
+    if fit["kept_model_values"]:
+        assert load_dynamics(out).control_delay_steps == 0
+        assert "they are kept" in capsys.readouterr().out

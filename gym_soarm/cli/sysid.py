@@ -119,6 +119,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         report["overall_rms_after_deg"],
     )
     print(f"{'all':<16}{overall_before:>12.4g}{overall_after:>12.4g}")
+    if report.get("kept_model_values"):
+        print("no fit improved on the model's own figures: they are kept (and no delay)")
     try:
         write_dynamics(result.dynamics, args.out)
     except ValueError as exc:

@@ -41,6 +41,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import io
+import logging
 import math
 import os
 import time
@@ -73,6 +74,8 @@ from gym_soarm.real.units import UNITS
 from gym_soarm.sim.randomization import arm_indices
 from gym_soarm.tasks import get_task
 from gym_soarm.validation import check_choice, check_int
+
+logger = logging.getLogger(__name__)
 
 DELAYS: tuple[int, ...] = (0, 1, 2, 3)
 """The control delays (steps of 20 ms) tried."""
@@ -494,6 +497,15 @@ def fit_dynamics(
     _, delay, gains = best
     fitted, _ = problem.fit(problem.parameters(JOINT_FIELDS, gains), delay, iterations)
     after = problem.simulate(fitted, delay)
+    kept_start = problem.rms_deg(after) >= problem.rms_deg(before)
+    if kept_start:  # no iteration did better than the model's own figures: keep them
+        logger.warning(
+            "sysid: the fit (%.6f deg RMS) did not improve on the model's own figures "
+            "(%.6f deg RMS); keeping them and no delay",
+            problem.rms_deg(after),
+            problem.rms_deg(before),
+        )
+        fitted, delay, after = nominal, 0, before
 
     recorded = [np.degrees(e.recorded_rad) for e in prepared]
     before_deg = [np.degrees(s) for s in before]
@@ -517,6 +529,7 @@ def fit_dynamics(
         "overall_rms_after_deg": round(float(np.sqrt(np.mean(error_after**2))), 4),
         "delay_rms_deg": delay_rms,
         "model_values": problem.nominal,
+        "kept_model_values": kept_start,
         "fit_seconds": round(time.perf_counter() - started, 1),
         "method": "mujoco.sysid.optimize (scipy_parallel_fd) on mujoco.rollout, "
         f"MuJoCo {mujoco.__version__}",
