@@ -87,3 +87,24 @@ def test_refused_input_exits_with_argparse_s_usage_code(argv, tmp_path):
     )
     assert done.returncode == 2, done.stderr
     assert "error:" in done.stderr and not list(tmp_path.iterdir())
+
+
+def test_the_tabletop_preset_bounds_agent_pos_by_the_joints_ranges():
+    import gymnasium as gym
+    import numpy as np
+
+    import gym_soarm
+
+    env = gym.make(gym_soarm.TABLETOP_ID, observation_height=48, observation_width=64)
+    try:
+        space = env.observation_space["agent_pos"]
+        np.testing.assert_allclose(space.low, env.action_space.low, rtol=1e-6)
+        np.testing.assert_allclose(space.high, env.action_space.high, rtol=1e-6)
+        assert (space.low[-1], space.high[-1]) == (0.0, 100.0)  # the gripper, as the follower
+        obs, _ = env.reset(seed=0)
+        rng = np.random.default_rng(0)
+        for _ in range(20):
+            assert space.contains(obs["agent_pos"]), obs["agent_pos"]
+            obs, *_ = env.step(rng.uniform(env.action_space.low, env.action_space.high))
+    finally:
+        env.close()

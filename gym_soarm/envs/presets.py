@@ -18,6 +18,7 @@ from __future__ import annotations
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 from gymnasium import spaces
 
 from gym_soarm.envs.env import SoArmEnv
@@ -47,15 +48,21 @@ class TabletopContract(gym.Wrapper):
     """The contract's names and reward over a ``PutCubesInBox-v0`` environment: the
     cameras of ``obs["pixels"]`` renamed as ``keys`` maps them, and the reward the
     fraction of the cubes in the box (``info["cubes_in_box"] / 4``) on every step, the
-    last one too (the task itself adds its success bonus there)."""
+    last one too (the task itself adds its success bonus there). ``agent_pos`` is bounded
+    by the joints' own ranges in the follower's units, as the real follower reports them
+    (the gripper 0-100): the bounds of the actions, a reading past them clipped."""
 
     def __init__(self, env: gym.Env, keys: dict[str, str]) -> None:
         super().__init__(env)
         self.keys = dict(keys)
         inner = env.observation_space["pixels"]
+        joints = env.action_space
+        self._low = joints.low.astype(np.float64)
+        self._high = joints.high.astype(np.float64)
         self.observation_space = spaces.Dict(
             {
                 **env.observation_space.spaces,
+                "agent_pos": spaces.Box(self._low, self._high, dtype=np.float64),
                 "pixels": spaces.Dict(
                     {self.keys.get(name, name): space for name, space in inner.spaces.items()}
                 ),
@@ -63,9 +70,10 @@ class TabletopContract(gym.Wrapper):
         )
 
     def observation(self, observation: dict[str, Any]) -> dict[str, Any]:
-        """``observation`` with the contract's camera keys."""
+        """``observation`` with the contract's camera keys and ``agent_pos`` in its bounds."""
         pixels = {self.keys.get(name, name): image for name, image in observation["pixels"].items()}
-        return {**observation, "pixels": pixels}
+        agent_pos = np.clip(np.asarray(observation["agent_pos"], np.float64), self._low, self._high)
+        return {**observation, "agent_pos": agent_pos, "pixels": pixels}
 
     def reset(self, **kwargs: Any) -> tuple[dict[str, Any], dict[str, Any]]:
         obs, info = self.env.reset(**kwargs)
