@@ -21,6 +21,8 @@ class TrainResult:
     env_steps: int
     wall_s: float
     success_rate: float | None
+    """The success rate of the policy the folder holds (for BC and DAgger its best round),
+    None before the first evaluation."""
     interrupted: bool
 
 

@@ -175,7 +175,8 @@ class ImitationTrainer:
                 self.on_interrupt()
         finally:
             self.venv.close()
-        return self.folder.result(self.env_steps, self.rate)
+        # The folder holds the best round: its rate is the run's.
+        return self.folder.result(self.env_steps, self.best if self.best >= 0 else None)
 
     def make_vector_env(self) -> gym.vector.VectorEnv:
         """``n_envs`` of the recipe's environment side by side, autoreset disabled."""
