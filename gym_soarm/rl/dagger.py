@@ -255,7 +255,8 @@ class ImitationTrainer:
         seconds = time.perf_counter() - began
         stored = self.env_steps - steps_before
         logger.info(
-            "%s: round %d, %d episodes (beta %.2f), %d succeeded with the executed actions; "
+            "%s: round %d gathered %d episodes (the expert acting with probability %.2f), "
+            "%d of them successful; "
             "%d steps stored in %.0f s (%.0f a second, %d environment steps in all)",
             self.title, round_, run.finished, beta, run.successes, stored, seconds,
             stored / max(seconds, 1e-9), run.stepped,
