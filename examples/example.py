@@ -32,6 +32,7 @@ from tqdm import tqdm
 
 import gym_soarm
 from gym_soarm import constants
+from gym_soarm.cli.options import task_name
 from gym_soarm.render.display import DisplayUnavailableError, window_support_problem
 from gym_soarm.render.video import save_frames_to_mp4
 from gym_soarm.tasks import DEFAULT_TASK, placement, task_names
@@ -103,21 +104,13 @@ def run_episode(
     return frames, success_step
 
 
-def _task_name(value: str) -> str:
-    """A task's name from its name, alias (``lift``) or gym id; argparse's error otherwise."""
-    try:
-        return gym_soarm.get_task(value).name
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument(
         "--task",
-        type=_task_name,
+        type=task_name,
         default=DEFAULT_TASK,
         metavar="TASK",
         help=f"the task, by name, alias or gym id: {', '.join(task_names())} "

@@ -22,7 +22,8 @@ from collections.abc import Sequence
 import gymnasium as gym
 import numpy as np
 
-import gym_soarm  # noqa: F401  (registers the environments)
+import gym_soarm  # registers the environments
+from gym_soarm.cli.options import task_name
 
 
 def rate_of_one(env_id: str, steps: int, seed: int) -> float:
@@ -41,9 +42,16 @@ def rate_of_one(env_id: str, steps: int, seed: int) -> float:
         env.close()
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """The script's command line."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="gym_soarm/LiftCube-v0", help="the environment id")
+    parser.add_argument(
+        "--task",
+        type=task_name,
+        default="LiftCube-v0",
+        metavar="TASK",
+        help="the task, by name, alias or gym id (default: LiftCube-v0)",
+    )
     parser.add_argument("--num-envs", type=int, default=8, help="environments (default 8)")
     parser.add_argument("--steps", type=int, default=200, help="vector steps (default 200)")
     parser.add_argument("--seed", type=int, default=0, help="environment i is seeded seed + i")
@@ -53,12 +61,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         choices=("auto", "batched", "processes"),
         help="one mujoco.batch (batched; auto for state) or worker processes",
     )
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
     args = parser.parse_args(argv)
+    env_id = gym_soarm.get_task(args.task).env_id
     if args.num_envs < 1 or args.steps < 1:
         parser.error(f"--num-envs and --steps must be >= 1; got {args.num_envs}, {args.steps}")
 
     envs = gym.make_vec(
-        args.task,
+        env_id,
         num_envs=args.num_envs,
         vectorization_mode="vector_entry_point",
         obs_type="state",
@@ -68,13 +82,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         inner = envs.unwrapped
         if hasattr(inner, "worker_pids"):
             print(
-                f"{args.num_envs} x {args.task} in {inner.num_processes} processes "
+                f"{args.num_envs} x {env_id} in {inner.num_processes} processes "
                 f"(this one and workers {list(inner.worker_pids)})"
             )
         else:
-            print(
-                f"{args.num_envs} x {args.task} in one mujoco.batch on {inner.num_threads} threads"
-            )
+            print(f"{args.num_envs} x {env_id} in one mujoco.batch on {inner.num_threads} threads")
         obs, _ = envs.reset(seed=args.seed)
         envs.action_space.seed(args.seed)
         ended = 0
@@ -86,7 +98,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         envs.close()
     total = args.steps * args.num_envs
-    one = rate_of_one(args.task, min(total, 2000), args.seed)
+    one = rate_of_one(env_id, min(total, 2000), args.seed)
     print(f"observations {obs.shape}, {ended} episodes ended")
     print(f"vector env: {total / seconds:,.0f} steps/s; one env: {one:,.0f} steps/s")
     return 0

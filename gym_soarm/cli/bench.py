@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from gym_soarm.bench import bench, bench_vector
-from gym_soarm.cli.options import add_settings_arguments, settings_given
+from gym_soarm.cli.options import add_settings_arguments, settings_given, task_name
 from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.tasks import DEFAULT_TASK
 
@@ -94,8 +94,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--task",
+        type=task_name,
         default=DEFAULT_TASK,
-        help="the registered task to measure (default: %(default)s, the scene of SoArm-v0)",
+        metavar="TASK",
+        help="the registered task to measure, by name, alias or gym id (default: "
+        "%(default)s, the scene of SoArm-v0)",
     )
     parser.add_argument(
         "--control-mode",

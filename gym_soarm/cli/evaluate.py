@@ -19,6 +19,7 @@ from gym_soarm.cli.options import (
     int_at_least,
     settings_except,
     settings_given,
+    task_name,
 )
 from gym_soarm.envs.settings import merge_keywords
 from gym_soarm.tasks import get_task, task_names
@@ -54,9 +55,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--task",
+        type=task_name,
         default=None,
-        help=f"the task ({', '.join(task_names())}); required with --policy expert, "
-        "else the policy's own (another is refused)",
+        metavar="TASK",
+        help=f"the task, by name, alias or gym id ({', '.join(task_names())}); required "
+        "with --policy expert, else the policy's own (another is refused)",
     )
     parser.add_argument(
         "--episodes", type=int_at_least(1), default=50, help="episodes (default 50)"

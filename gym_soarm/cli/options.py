@@ -12,8 +12,18 @@ from gym_soarm import constants
 from gym_soarm.envs.settings import EnvSettings, setting_fields
 from gym_soarm.real.replay import REPLAY_TASK
 from gym_soarm.real.units import UNITS
-from gym_soarm.tasks import task_names, task_spellings
+from gym_soarm.tasks import get_task, task_names
 from gym_soarm.tasks.suites import resolve_selection
+
+
+def task_name(text: str) -> str:
+    """argparse type of a program's single ``--task``: a task's name (``LiftCube-v0``),
+    alias (``lift``) or gym id (``gym_soarm/LiftCube-v0``), returned as the task's name;
+    anything else is argparse's usage error (exit 2) that lists the names and aliases."""
+    try:
+        return get_task(text).name
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def task_selection(text: str) -> str:
@@ -68,12 +78,12 @@ def add_dataset_scene_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--task",
-        choices=task_spellings(),
+        type=task_name,
         default=None,
         metavar="TASK",
-        help=f"the scene of every episode: {', '.join(task_names())} (default: each "
-        f"episode's recorded task in gym_soarm recordings, else {REPLAY_TASK}: no object "
-        "in the way)",
+        help="the scene of every episode, by name, alias or gym id: "
+        f"{', '.join(task_names())} (default: each episode's recorded task in gym_soarm "
+        f"recordings, else {REPLAY_TASK}: no object in the way)",
     )
     parser.add_argument(
         "--seed",

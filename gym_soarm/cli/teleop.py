@@ -19,6 +19,7 @@ from gym_soarm.cli.options import (
     add_settings_arguments,
     camera_config_argument,
     settings_from_args,
+    task_name,
 )
 from gym_soarm.data import LeRobotDatasetWriter
 from gym_soarm.envs.settings import EnvSettings
@@ -32,7 +33,7 @@ from gym_soarm.record.record import (
     write_recording_settings,
 )
 from gym_soarm.render.display import window_support_problem
-from gym_soarm.tasks import get_task, task_names, task_spellings
+from gym_soarm.tasks import get_task, task_names
 from gym_soarm.teleop.gamepad import Gamepad, import_pygame
 from gym_soarm.teleop.input import KEY_HELP, MAX_SPEED_M_S, MAX_TURN_SPEED_RAD_S, TeleopSpeeds
 from gym_soarm.teleop.session import KEEP_CHOICES, TeleopSession
@@ -81,10 +82,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--task",
-        choices=task_spellings(),
+        type=task_name,
         default=DEFAULT_RECORD_TASK,
         metavar="TASK",
-        help=f"a task: {', '.join(task_names())} (default {DEFAULT_RECORD_TASK})",
+        help=f"a task, by name, alias or gym id: {', '.join(task_names())} "
+        f"(default {DEFAULT_RECORD_TASK})",
     )
     parser.add_argument(
         "--episodes", type=int, default=10, help="stop after saving N episodes (default 10)"

@@ -26,6 +26,7 @@ from gym_soarm.cli.options import (
     add_settings_arguments,
     int_at_least,
     settings_given,
+    task_name,
 )
 from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.rl.hyperparams import IMITATION, TRAINERS, VEC_ENVS
@@ -78,7 +79,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--algo", required=True, choices=TRAINERS, help="the algorithm")
     parser.add_argument(
-        "--task", required=True, help=f"the task: {', '.join(task_names())} (or an alias)"
+        "--task",
+        type=task_name,
+        required=True,
+        metavar="TASK",
+        help=f"the task, by name, alias or gym id: {', '.join(task_names())}",
     )
     parser.add_argument("--seed", type=int_at_least(0), default=0, help="training seed (default 0)")
     parser.add_argument(
