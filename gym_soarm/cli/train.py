@@ -150,6 +150,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+IMITATION_REFUSED: dict[str, str] = {
+    "--steps": "its size is the recipe's demos, rounds and episodes_per_round; set them with "
+    "--hyperparams demos=N",
+    "--eval-every": "it evaluates after each round",
+    "--vec-env": "it runs the recipe's n_envs episodes side by side in this process",
+    "--init": "it starts from the expert's demonstrations, while --init starts PPO from a "
+    "trained policy (--algo ppo --init DIR)",
+}
+"""The PPO and SAC flags an imitation run refuses, and why."""
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Train; 0 when the run finished, 130 when Ctrl-C stopped it (checkpoint kept)."""
     parser = build_parser()
@@ -164,15 +175,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 ("--init", args.init),
             ):
                 if value is not None:
-                    why = (
-                        "--init starts PPO from a policy folder (--algo ppo --init DIR); a "
-                        f"{args.algo} run always starts from the expert's demonstrations"
-                        if flag == "--init"
-                        else "its sizes are the recipe's demos, rounds and episodes_per_round:"
-                        " --hyperparams demos=N ..."
-                    )
                     raise ValueError(
-                        f"{flag} does not apply to --algo {args.algo} ({why}); drop it."
+                        f"{flag} does not apply to --algo {args.algo}: "
+                        f"{IMITATION_REFUSED[flag]}. Drop {flag}."
                     )
             from gym_soarm.rl.imitation import train_imitation
 
