@@ -18,9 +18,18 @@ the rest of gym_soarm never imports LeRobot or torch.
 
 from __future__ import annotations
 
+import sys
+
 try:
     from lerobot.envs.configs import EnvConfig  # noqa: F401
 except ImportError as exc:  # LeRobot (or one of its own dependencies) is missing
+    if sys.version_info < (3, 12):
+        raise ImportError(
+            "gym_soarm.lerobot needs LeRobot, which needs Python >= 3.12; this is Python "
+            f"{sys.version_info.major}.{sys.version_info.minor}, where the lerobot extra "
+            "installs nothing. Create a Python 3.12+ environment and pip install "
+            f"'gym-soarm[lerobot]' there. The import failed with: {exc}"
+        ) from exc
     raise ImportError(
         "gym_soarm.lerobot needs LeRobot: pip install 'gym-soarm[lerobot]' "
         f"(LeRobot >= 0.5 needs Python >= 3.12). The import failed with: {exc}"
