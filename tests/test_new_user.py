@@ -274,3 +274,19 @@ def test_the_tabletop_preset_bounds_agent_pos_by_the_joints_ranges():
             obs, *_ = env.step(rng.uniform(env.action_space.low, env.action_space.high))
     finally:
         env.close()
+
+
+# --- 11. messages a user reads ----------------------------------------------------------
+def test_one_episode_is_one_episode_and_the_control_rate_message_parses(tmp_path):
+    argv = ["--policy", "expert", "--task", "reach", "--episodes", "1"]
+    done = subprocess.run(
+        [sys.executable, "-m", "gym_soarm.evaluate", *argv],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "ReachTarget-v0: success 100 % over 1 episode (seeds 1000-1000)" in done.stdout
+    with pytest.raises(ValueError, match=r"must be a control rate whose period is a whole number"):
+        gym.make("gym_soarm/ReachTarget-v0", obs_type="state", control_hz=7)
