@@ -285,7 +285,7 @@ def test_pixel_policy_refuses_other_cameras_or_sizes_naming_both(dagger_lift):
 def test_interrupted_before_training_keeps_no_model_and_says_so(tmp_path):
     # A run folder whose Ctrl-C flag is already set: nothing is collected, nothing saved.
     from gym_soarm.rl.hyperparams import pixel_recipe
-    from gym_soarm.rl.pixel_training import train_pixels
+    from gym_soarm.rl.pixel_training import PixelTrainer
     from gym_soarm.rl.pixels import check_pixel_settings
     from gym_soarm.rl.runs import RunFolder
     from gym_soarm.tasks import get_task
@@ -293,7 +293,7 @@ def test_interrupted_before_training_keeps_no_model_and_says_so(tmp_path):
     settings = check_pixel_settings("bc", pixel_recipe("bc", "LiftCube-v0"))
     folder = RunFolder(tmp_path, "interrupted").prepare()
     folder.stop.interrupted = True
-    result = train_pixels("bc", get_task("lift"), folder, 0, settings)
+    result = PixelTrainer("bc", get_task("lift"), folder, 0, settings).run()
     assert result.env_steps == 0 and result.success_rate is None and result.interrupted
     assert not (tmp_path / PIXEL_MODEL_FILE).exists()
 

@@ -38,8 +38,8 @@ import numpy as np
 
 from gym_soarm.expert import make_expert
 from gym_soarm.rl.curves import TrainResult
-from gym_soarm.rl.evaluation import make_env, score
-from gym_soarm.rl.runs import RunFolder, dart_noise, training_seeds
+from gym_soarm.rl.evaluation import POLICY_FORMAT, SETTINGS_FILE, make_env, score
+from gym_soarm.rl.runs import TRAINING_SEEDS, RunFolder, dart_noise, training_seeds
 from gym_soarm.tasks.suites import EVAL_SEED
 
 logger = logging.getLogger(__name__)
@@ -138,7 +138,6 @@ class ImitationTrainer:
         self.env_kwargs = dict(settings["env"])
         self.rng = np.random.default_rng([seed, self.rng_stream])
         self.env_steps = self.episodes = 0
-        self.rate: float | None = None
         self.best = -1.0
         self.learning = False
         self.venv: gym.vector.VectorEnv | None = None
@@ -181,10 +180,12 @@ class ImitationTrainer:
     def make_vector_env(self) -> gym.vector.VectorEnv:
         """``n_envs`` of the recipe's environment side by side, autoreset disabled."""
         name, kwargs = self.spec.name, self.env_kwargs
-        return gym.vector.SyncVectorEnv(
+        venv = gym.vector.SyncVectorEnv(
             [lambda: make_env(name, kwargs) for _ in range(self.settings["n_envs"])],
             autoreset_mode=gym.vector.AutoresetMode.DISABLED,
         )
+        self.observation_names = list(venv.envs[0].unwrapped.observation_names)
+        return venv
 
     def dagger_rounds(self) -> None:
         params, since_best = self.params, 0
@@ -206,25 +207,25 @@ class ImitationTrainer:
             return
         episodes = self.settings["eval_episodes"]
         result = score(self.spec.name, self.env_kwargs, self.policy(), episodes, EVAL_SEED)
-        self.rate = result["success_rate"]
+        rate = result["success_rate"]
         self.folder.add_row(
             {
                 "round": round_,
                 "env_steps": self.env_steps,
                 "samples": self.stored(),
-                "success_rate": self.rate,
+                "success_rate": rate,
                 "mean_return": round(result["mean_return"], 4),
                 "episodes": episodes,
             }
         )
-        if self.rate >= self.best:  # DAgger keeps its best round
-            self.best = self.rate
+        if rate >= self.best:  # DAgger keeps its best round
+            self.best = rate
             self.save()
         self.after_evaluation()
         self.write_settings()
         logger.info(
             "%s: round %d, %d samples, loss %.4f, %.0f s, success %.0f %%",
-            self.title, round_, self.stored(), loss, self.folder.wall_s(), 100 * self.rate,
+            self.title, round_, self.stored(), loss, self.folder.wall_s(), 100 * rate,
         )  # fmt: skip
 
     # ----------------------------------------------------------------------- gathering
@@ -308,9 +309,27 @@ class ImitationTrainer:
         """Write the student's checkpoint into the folder."""
         raise NotImplementedError
 
+    def extra_settings(self) -> dict[str, Any]:
+        """What the student's ``settings.json`` holds beyond every imitation run's fields."""
+        return {}
+
     def write_settings(self) -> None:
-        """Write the folder's ``settings.json``."""
-        raise NotImplementedError
+        """Write the folder's ``settings.json`` (format ``gym_soarm.policy/1``)."""
+        self.folder.write_settings(
+            SETTINGS_FILE,
+            {
+                "format": POLICY_FORMAT,
+                "algo": self.algo,
+                "task": self.spec.name,
+                "seed": self.seed,
+                "steps": self.env_steps,
+                "env": self.env_kwargs,
+                "observation_names": self.observation_names,
+                "recipe": self.settings,
+                "training_seeds": TRAINING_SEEDS,
+                **self.extra_settings(),
+            },
+        )
 
 
 __all__ = ["Gathering", "ImitationTrainer", "env_info"]

@@ -63,8 +63,6 @@ from gym_soarm.rl.dagger import Gathering, ImitationTrainer
 from gym_soarm.rl.evaluation import (
     MODEL_FILE,
     NORMALIZE_FILE,
-    POLICY_FORMAT,
-    SETTINGS_FILE,
     make_env,
     require_sb3,
 )
@@ -77,7 +75,7 @@ from gym_soarm.rl.pixels import (
     is_pixel_env,
     store_bound,
 )
-from gym_soarm.rl.runs import TRAINING_SEEDS, RunFolder, check_run_numbers, training_seeds
+from gym_soarm.rl.runs import RunFolder, check_run_numbers, training_seeds
 from gym_soarm.tasks import get_task
 from gym_soarm.validation import ArgumentTypeError, check_int
 
@@ -369,7 +367,6 @@ class StateTrainer(ImitationTrainer):
 
     def make_vector_env(self) -> Any:
         venv = super().make_vector_env()
-        self.observation_names = list(venv.envs[0].unwrapped.observation_names)
         obs_dim, act_dim = len(self.observation_names), venv.single_action_space.shape[0]
         self.data = Dataset.empty(obs_dim, act_dim)
         return venv
@@ -440,13 +437,12 @@ class StateTrainer(ImitationTrainer):
         )  # fmt: skip
 
     def save(self) -> None:
+        """The model and its observation statistics (the data: :meth:`after_evaluation`)."""
         if self.model is None:
             return
         self.model.save(self.out_path / MODEL_FILE)
         if self.normalizer is not None:
             save_normalizer(self.normalizer, self.out_path / NORMALIZE_FILE)
-        self.dataset().save(self.out_path / DEMOS_FILE)
-        self.write_settings()
 
     def after_evaluation(self) -> None:
         self.dataset().save(self.out_path / DEMOS_FILE)
@@ -455,23 +451,10 @@ class StateTrainer(ImitationTrainer):
         if self.model is None and self.stored():
             self.start_learning()
         self.save()
+        if self.model is not None:
+            self.after_evaluation()
+            self.write_settings()
         self.folder.write_curve()
-
-    def write_settings(self) -> None:
-        self.folder.write_settings(
-            SETTINGS_FILE,
-            {
-                "format": POLICY_FORMAT,
-                "algo": self.algo,
-                "task": self.spec.name,
-                "seed": self.seed,
-                "steps": self.env_steps,
-                "env": self.env_kwargs,
-                "observation_names": self.observation_names,
-                "recipe": self.settings,
-                "training_seeds": TRAINING_SEEDS,
-            },
-        )
 
 
 def check_device(device: Any, pixels: bool) -> None:

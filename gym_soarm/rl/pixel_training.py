@@ -18,9 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from gym_soarm.rl.curves import TrainResult
 from gym_soarm.rl.dagger import Gathering, ImitationTrainer
-from gym_soarm.rl.evaluation import POLICY_FORMAT, SETTINGS_FILE
 from gym_soarm.rl.pixels import (
     PIXEL_MODEL_FILE,
     PIXEL_POLICY,
@@ -36,7 +34,6 @@ from gym_soarm.rl.pixels import (
     random_shift,
     store_bound,
 )
-from gym_soarm.rl.runs import TRAINING_SEEDS, RunFolder
 
 logger = logging.getLogger(__name__)
 
@@ -91,11 +88,16 @@ class PixelTrainer(ImitationTrainer):
         venv = super().make_vector_env()
         first = venv.envs[0]
         self.command_of_pos = command_map(first)
-        self.observation_names = list(first.unwrapped.observation_names)
         act_dim = venv.single_action_space.shape[0]
         self.previous = np.zeros((venv.num_envs, 6), np.float32)
         self.command = np.zeros((venv.num_envs, act_dim), np.float32)
         return venv
+
+    @property
+    def aux_input(self) -> bool:
+        """Whether the auxiliary estimate feeds the action (the recipe's, when there are
+        auxiliary targets)."""
+        return bool(self.params.get("aux_input", False)) and self.store.aux_dim > 0
 
     @property
     def model_path(self) -> Path:
@@ -154,7 +156,7 @@ class PixelTrainer(ImitationTrainer):
             params["hidden"],
             downsample=params["downsample"],
             aux_dim=store.aux_dim,
-            aux_input=bool(params.get("aux_input", False)) and store.aux_dim > 0,
+            aux_input=self.aux_input,
         ).to(self.device)
         self.optimizer = torch.optim.Adam(self.net.parameters(), lr=params["learning_rate"])
 
@@ -250,24 +252,12 @@ class PixelTrainer(ImitationTrainer):
             self.save()
             self.write_settings()
 
-    def write_settings(self) -> None:
-        self.folder.write_settings(
-            SETTINGS_FILE,
-            {
-                "format": POLICY_FORMAT,
-                "policy": PIXEL_POLICY,
-                "algo": self.algo,
-                "task": self.spec.name,
-                "seed": self.seed,
-                "steps": self.env_steps,
-                "env": self.env_kwargs,
-                "cameras": list(self.cameras),
-                "image_size": [self.height, self.width],
-                "observation_names": self.observation_names,
-                "recipe": self.settings,
-                "training_seeds": TRAINING_SEEDS,
-            },
-        )
+    def extra_settings(self) -> dict[str, Any]:
+        return {
+            "policy": PIXEL_POLICY,
+            "cameras": list(self.cameras),
+            "image_size": [self.height, self.width],
+        }
 
     def save(self) -> None:
         import torch
@@ -282,7 +272,7 @@ class PixelTrainer(ImitationTrainer):
             "hidden": list(params["hidden"]),
             "downsample": params["downsample"],
             "aux_dim": self.store.aux_dim,
-            "aux_input": bool(params.get("aux_input", False)) and self.store.aux_dim > 0,
+            "aux_input": self.aux_input,
         }
         weights = {k: v.detach().cpu() for k, v in self.net.state_dict().items()}
         torch.save(
@@ -297,16 +287,4 @@ class PixelTrainer(ImitationTrainer):
         )
 
 
-def train_pixels(
-    algo: str,
-    spec: Any,
-    folder: RunFolder,
-    seed: int,
-    settings: dict[str, Any],
-    device: str = "cpu",
-) -> TrainResult:
-    """Train a pixel student (:class:`PixelTrainer`) in ``folder``; returns the result."""
-    return PixelTrainer(algo, spec, folder, seed, settings, device).run()
-
-
-__all__ = ["PixelTrainer", "train_pixels"]
+__all__ = ["PixelTrainer"]
