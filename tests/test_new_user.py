@@ -43,6 +43,13 @@ needs_git = pytest.mark.skipif(
 )
 
 
+def _python(argv: list[str], cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    """Run ``python *argv`` in ``cwd`` as a user would, capturing its output."""
+    return subprocess.run(
+        [sys.executable, *argv], cwd=cwd, capture_output=True, text=True, timeout=timeout
+    )
+
+
 def _tracked(path: str) -> list[str]:
     return _git("ls-files", "--", path).stdout.split()
 
@@ -84,13 +91,13 @@ def test_without_lerobot_its_module_says_what_to_install_and_on_which_python():
 def test_the_readme_s_commands_write_only_where_git_does_not_look(tmp_path):
     # The README's bench command and its example, shortened, run where a user runs them.
     commands = [
-        [sys.executable, "-m", "gym_soarm.bench", "--configs", "state", "--seconds", "0.2"],
-        [sys.executable, str(EXAMPLES / "example.py"), "--task", "lift", "--steps", "3"],
+        ["-m", "gym_soarm.bench", "--configs", "state", "--seconds", "0.2"],
+        [str(EXAMPLES / "example.py"), "--task", "lift", "--steps", "3"],
     ]
     commands[0] += ["--repeats", "1"]
     commands[1] += ["--height", "48", "--width", "64", "--viewer", "off"]
     for command in commands:
-        done = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+        done = _python(command, tmp_path, timeout=300)
         assert done.returncode == 0, done.stderr[-3000:]
     written = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.is_file())
     assert bench.DEFAULT_JSON in written and any(p.endswith(".mp4") for p in written), written
@@ -231,9 +238,7 @@ def test_an_unknown_keyword_names_the_closest_ones_and_the_keyword_page(maker, t
     ids=lambda argv: " ".join(Path(a).name for a in argv),
 )
 def test_refused_input_exits_with_argparse_s_usage_code(argv, tmp_path):
-    done = subprocess.run(
-        [sys.executable, *argv], cwd=tmp_path, capture_output=True, text=True, timeout=120
-    )
+    done = _python(argv, tmp_path)
     assert done.returncode == 2, done.stderr
     assert "error:" in done.stderr and not list(tmp_path.iterdir())
 
@@ -241,13 +246,7 @@ def test_refused_input_exits_with_argparse_s_usage_code(argv, tmp_path):
 @pytest.mark.parametrize("flag, value", [("--init", "runs/x"), ("--vec-env", "dummy")])
 def test_an_imitation_run_says_why_it_refuses_a_ppo_flag(flag, value, tmp_path):
     argv = ["--algo", "bc", "--task", "lift", "--out", "runs/x", flag, value]
-    done = subprocess.run(
-        [sys.executable, "-m", "gym_soarm.train", *argv],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    done = _python(["-m", "gym_soarm.train", *argv], tmp_path)
     assert done.returncode == 2
     error = done.stderr.strip().splitlines()[-1]
     assert f"{flag} does not apply to --algo bc: " in error and f"Drop {flag}." in error
@@ -279,13 +278,7 @@ def test_the_tabletop_preset_bounds_agent_pos_by_the_joints_ranges():
 # --- 11. messages a user reads ----------------------------------------------------------
 def test_one_episode_is_one_episode_and_the_control_rate_message_parses(tmp_path):
     argv = ["--policy", "expert", "--task", "reach", "--episodes", "1"]
-    done = subprocess.run(
-        [sys.executable, "-m", "gym_soarm.evaluate", *argv],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    done = _python(["-m", "gym_soarm.evaluate", *argv], tmp_path, timeout=300)
     assert done.returncode == 0, done.stderr[-3000:]
     assert "ReachTarget-v0: success 100 % over 1 episode (seeds 1000-1000)" in done.stdout
     with pytest.raises(ValueError, match=r"must be a control rate whose period is a whole number"):
