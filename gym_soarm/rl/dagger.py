@@ -5,12 +5,14 @@
 
 1. **Round 0**: ``demos`` episodes of the expert with DART noise (the executed action is
    the expert's plus Gaussian noise of ``dart_std``, clipped to [-1, 1]; the stored label is
-   the clean action), then ``epochs`` passes of regression; the student is evaluated on the
-   protocol's first episodes.
+   the clean action), then ``epochs`` passes of regression; the student is evaluated on
+   ``eval_episodes`` validation episodes.
 2. **DAgger rounds** r = 1 .. ``rounds``: ``episodes_per_round`` episodes in which each
    step executes the expert's action with probability ``beta0 * beta_decay ** r`` and the
    student's otherwise; the expert labels every state; the student goes on from where it
-   was (warm start) for ``round_epochs`` passes over everything gathered and is evaluated.
+   was (warm start) for ``round_epochs`` passes over everything gathered and is evaluated
+   (on the validation episodes, seeds :data:`VALIDATION_SEED
+   <gym_soarm.rl.runs.VALIDATION_SEED>` + k: the protocol's stay unseen for the report).
    The rounds stop early once ``patience`` rounds in a row failed to beat the best
    evaluation (the recipe's ``patience``, where it has one) or at 100 %.
 3. The folder keeps the round that scored best (the latest among equals).
@@ -39,8 +41,13 @@ import numpy as np
 from gym_soarm.expert import make_expert
 from gym_soarm.rl.curves import TrainResult
 from gym_soarm.rl.evaluation import POLICY_FORMAT, SETTINGS_FILE, make_env, score
-from gym_soarm.rl.runs import TRAINING_SEEDS, RunFolder, dart_noise, training_seeds
-from gym_soarm.tasks.suites import EVAL_SEED
+from gym_soarm.rl.runs import (
+    TRAINING_SEEDS,
+    VALIDATION_SEED,
+    RunFolder,
+    dart_noise,
+    training_seeds,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -206,7 +213,7 @@ class ImitationTrainer:
         if self.stop():
             return
         episodes = self.settings["eval_episodes"]
-        result = score(self.spec.name, self.env_kwargs, self.policy(), episodes, EVAL_SEED)
+        result = score(self.spec.name, self.env_kwargs, self.policy(), episodes, VALIDATION_SEED)
         rate = result["success_rate"]
         self.folder.add_row(
             {
@@ -327,6 +334,7 @@ class ImitationTrainer:
                 "observation_names": self.observation_names,
                 "recipe": self.settings,
                 "training_seeds": TRAINING_SEEDS,
+                "validation_seed": VALIDATION_SEED,
                 **self.extra_settings(),
             },
         )

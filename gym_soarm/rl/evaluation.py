@@ -101,6 +101,8 @@ def model_file(settings: Any) -> str:
 
     if isinstance(settings, dict) and settings.get("policy") == PIXEL_POLICY:
         return PIXEL_MODEL_FILE
+    if isinstance(settings, dict) and settings.get("library") == "rsl_rl":
+        return "model.pt"  # gym_soarm.rl.rsl.RSL_MODEL_FILE
     return MODEL_FILE
 
 
@@ -143,6 +145,10 @@ class TrainedPolicy:
         self.task = trained
         self._normalizer = None
         self._pixels = None
+        self._actor = None
+        if settings.get("library") == "rsl_rl":
+            self._actor = _rsl_actor(Path(folder), settings, obs_space.shape, action_space.shape)
+            return
         if model_file(settings) != MODEL_FILE:
             from gym_soarm.rl.pixels import PixelPolicy
 
@@ -182,10 +188,29 @@ class TrainedPolicy:
     def __call__(self, obs: Any, info: dict[str, Any] | None = None) -> np.ndarray:
         if self._pixels is not None:
             return self._pixels(obs, info)
+        if self._actor is not None:
+            return self._actor(obs)
         if self._normalizer is not None:
             obs = self._normalizer.normalize_obs(obs)
         action, _ = self.model.predict(obs, deterministic=True)
         return action
+
+
+def _rsl_actor(folder: Path, settings: dict[str, Any], obs_shape: Any, action_shape: Any) -> Any:
+    """The actor of an RSL-RL folder (:mod:`gym_soarm.rl.rsl`) as ``obs -> action``."""
+    import torch
+    from tensordict import TensorDict
+
+    from gym_soarm.rl.rsl import OBS_GROUP, RSL_MODEL_FILE, load_actor
+
+    model = load_actor(folder / RSL_MODEL_FILE, settings["recipe"], obs_shape[0], action_shape[0])
+
+    def act(obs: np.ndarray) -> np.ndarray:
+        batch = torch.as_tensor(np.asarray(obs, np.float32))[None]
+        with torch.inference_mode():
+            return model(TensorDict({OBS_GROUP: batch}, batch_size=[1]))[0].numpy()
+
+    return act
 
 
 def protocol_seeds(episodes: int, first_seed: int = EVAL_SEED) -> list[int]:

@@ -213,6 +213,8 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "max_memory_gb": 8.0,
                 "aux_weight": 1.0,
                 "aux_input": True,
+                "lr_schedule": "cosine",
+                "episode_weighting": False,
             },
         },
         REACH: {"algo": {"dart_std": 0.01, "demos": 60}},
@@ -222,7 +224,7 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
             "env": _PIXEL_ENV,
             "n_envs": 4,
             "torch_threads": 2,
-            "eval_episodes": 20,
+            "eval_episodes": 30,
             "algo": {
                 "demos": 60,
                 "dart_std": 0.003,
@@ -236,6 +238,8 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "max_memory_gb": 8.0,
                 "aux_weight": 1.0,
                 "aux_input": True,
+                "lr_schedule": "cosine",
+                "episode_weighting": True,
                 "rounds": 8,
                 "patience": 3,
                 "episodes_per_round": 20,
@@ -313,3 +317,52 @@ def recipe(algo: str, task: str) -> dict[str, Any]:
             f"algo must be one of {', '.join(TRAINERS)}; got {algo!r}. Pass e.g. --algo ppo."
         )
     return _merged(HYPERPARAMS[algo], task)
+
+
+VECTOR_ENVS: tuple[str, ...] = ("batched", "processes", "warp")
+"""The package's vector envs (``--vector-env``): PPO trains with RSL-RL on ``batched`` and
+``warp`` (:mod:`gym_soarm.rl.rsl`), with Stable-Baselines3 on ``processes``."""
+
+RSL_HYPERPARAMS: dict[str, dict[str, Any]] = {
+    "default": {
+        "env": _STATE_ENV,
+        "num_envs": 64,
+        "num_envs_cuda": 4096,
+        "torch_threads": 1,
+        "steps": 2_000_000,
+        "eval_every": 100_000,
+        "eval_episodes": 20,
+        "algo": {
+            "num_steps_per_env": 24,
+            "learning_rate": 1e-3,
+            "schedule": "adaptive",
+            "desired_kl": 0.01,
+            "num_learning_epochs": 5,
+            "num_mini_batches": 4,
+            "clip_param": 0.2,
+            "gamma": 0.99,
+            "lam": 0.95,
+            "entropy_coef": 0.005,
+            "value_loss_coef": 1.0,
+            "max_grad_norm": 1.0,
+            "hidden_dims": [256, 128, 64],
+            "activation": "elu",
+            "obs_normalization": True,
+            "init_noise_std": 1.0,
+        },
+    },
+    REACH: {"steps": 1_000_000, "eval_every": 50_000},
+    LIFT: {"steps": 6_000_000, "eval_every": 250_000},
+}
+"""PPO on RSL-RL (``--vector-env batched|warp``): ``num_envs`` environments on the CPU
+(``num_envs_cuda`` on a GPU), ``torch_threads``, ``steps``, ``eval_every``,
+``eval_episodes`` and the ``algo`` keys: RSL-RL's PPO arguments (``num_steps_per_env``
+steps of every environment per iteration, ``schedule="adaptive"`` scales the learning
+rate to keep the policy's KL near ``desired_kl``) and the actor's and critic's MLP
+(``hidden_dims``, ``activation``, ``obs_normalization``, ``init_noise_std``: the Gaussian's
+first standard deviation, in normalised action units)."""
+
+
+def rsl_recipe(task: str) -> dict[str, Any]:
+    """The settings of PPO on RSL-RL for ``task`` (a new dict, free to modify)."""
+    return _merged(RSL_HYPERPARAMS, task)

@@ -12,6 +12,7 @@ the last one down by ``downsample`` once, so an epoch costs the network alone.
 from __future__ import annotations
 
 import logging
+import math
 import time
 from pathlib import Path
 from typing import Any
@@ -49,6 +50,40 @@ def camera_obs(obs: Any, index: int) -> dict[str, Any]:
     }
 
 
+def episode_weights(episodes: np.ndarray, params: dict[str, Any]) -> np.ndarray:
+    """Each stored step's weight in the loss: 1 for all, or with ``episode_weighting``
+    (the recipe's, where it has it) the mean episode length over its episode's length, so
+    that every episode counts alike and a long failed one (a student hovering to the time
+    limit) does not outweigh the short successful ones. The weights average 1."""
+    if not params.get("episode_weighting", False) or len(episodes) == 0:
+        return np.ones(len(episodes), np.float32)
+    _, inverse, counts = np.unique(episodes, return_inverse=True, return_counts=True)
+    weights = counts.mean() / counts[inverse]
+    return (weights / weights.mean()).astype(np.float32)
+
+
+def learning_rates(params: dict[str, Any], epochs: int, steps_per_epoch: int) -> Any:
+    """The learning rate of each optimiser step of a fit, ``rate(epoch, step)``: the
+    recipe's ``learning_rate`` throughout, or with ``lr_schedule="cosine"`` annealed along
+    a half cosine to a hundredth of it by the fit's last step (each fit, each DAgger round,
+    starts again from the full rate)."""
+    base, schedule = params["learning_rate"], params.get("lr_schedule", "constant")
+    if schedule == "constant":
+        return lambda epoch, step: base
+    if schedule != "cosine":
+        raise ValueError(
+            f"lr_schedule is 'constant' or 'cosine'; got {schedule!r}. "
+            "Pass --hyperparams lr_schedule=\"'cosine'\"."
+        )
+    total = max(epochs * steps_per_epoch - 1, 1)
+
+    def rate(epoch: int, step: int) -> float:
+        done = (epoch * steps_per_epoch + step) / total
+        return base * (0.01 + 0.99 * 0.5 * (1.0 + math.cos(math.pi * done)))
+
+    return rate
+
+
 class PixelTrainer(ImitationTrainer):
     """A pixel student of ``spec``'s state expert (see :class:`ImitationTrainer
     <gym_soarm.rl.dagger.ImitationTrainer>` for the arguments and the loop): the frames
@@ -70,6 +105,7 @@ class PixelTrainer(ImitationTrainer):
             worst,
             worst * per_sample / 2**30,
         )
+        learning_rates(self.params, 1, 1)  # an unknown schedule is refused before anything runs
         torch.set_num_threads(settings["torch_threads"])
         torch.manual_seed(seed)
         # The first optimizer imports its optional compilers now, before a GL context exists.
@@ -195,18 +231,25 @@ class PixelTrainer(ImitationTrainer):
         change = (store.labels[:n] - store.proprio[:n, -act_dim:]) / RESIDUAL_SCALE
         change = torch.as_tensor(change, device=device)
         aux = torch.as_tensor((store.aux[:n] - self.aux_mean) / self.aux_std, device=device)
+        weight = torch.as_tensor(episode_weights(store.episode[:n], params), device=device)
+        batch = params["batch_size"]
+        schedule = learning_rates(params, epochs, -(-n // batch))
         self.net.train()
         loss_value, began = float("nan"), time.perf_counter()
-        for _ in range(epochs):
+        for epoch in range(epochs):
             order = torch.randperm(n, generator=self.generator).to(device)
             total = 0.0
-            for begin in range(0, n, params["batch_size"]):
-                index = order[begin : begin + params["batch_size"]]
+            for step, begin in enumerate(range(0, n, batch)):
+                for group in self.optimizer.param_groups:
+                    group["lr"] = schedule(epoch, step)
+                index = order[begin : begin + batch]
                 images = {
                     c: random_shift(frames[c][index].float().div_(255.0), shift, self.generator)
                     for c in self.cameras
                 }
-                total += self.update(images, proprio[index], change[index], aux[index])
+                total += self.update(
+                    images, proprio[index], change[index], aux[index], weight[index]
+                )
             loss_value = total / n
             if self.stop():
                 break
@@ -218,17 +261,20 @@ class PixelTrainer(ImitationTrainer):
         )  # fmt: skip
         return loss_value
 
-    def update(self, images: dict[str, Any], proprio: Any, change: Any, aux: Any) -> float:
-        """One optimiser step on a minibatch; returns its summed action loss."""
+    def update(
+        self, images: dict[str, Any], proprio: Any, change: Any, aux: Any, weight: Any
+    ) -> float:
+        """One optimiser step on a minibatch (each sample's squared errors times its
+        ``weight``); returns its summed action loss."""
         import torch
-        from torch.nn import functional
 
         keypoints = self.net.encode(images, pooled=True)
-        action_loss = functional.mse_loss(self.net.act_from(keypoints, proprio), change)
+        squared = (self.net.act_from(keypoints, proprio) - change).square().mean(dim=1)
+        action_loss = (squared * weight).mean()
         loss = action_loss
         if self.net.aux is not None:
-            weight = self.params["aux_weight"]
-            loss = loss + weight * functional.mse_loss(self.net.aux(keypoints), aux)
+            aux_squared = (self.net.aux(keypoints) - aux).square().mean(dim=1)
+            loss = loss + self.params["aux_weight"] * (aux_squared * weight).mean()
         self.optimizer.zero_grad()
         loss.backward()
         self.optimizer.step()

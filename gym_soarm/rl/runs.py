@@ -33,6 +33,10 @@ SEED_STRIDE = 100_000
 ROUND_STRIDE = 1_000
 """Reset seeds of round ``r`` start ``ROUND_STRIDE * r`` further on."""
 MAX_ROUNDS = SEED_STRIDE // ROUND_STRIDE - 1
+VALIDATION_SEED = 50_000
+"""The imitation trainers score each round on episodes ``VALIDATION_SEED + k``: neither
+training seeds nor the protocol's (``EVAL_SEED + k``), so that the round a run keeps is
+chosen on other episodes than those it is reported on."""
 
 
 def training_seeds(seed: int, round_: int, episodes: int) -> list[int]:

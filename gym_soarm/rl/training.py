@@ -53,9 +53,12 @@ from gym_soarm.rl.hyperparams import (
     IMITATION,
     POLICY_CLASSES,
     VEC_ENVS,
+    VECTOR_ENVS,
     override,
     recipe,
+    rsl_recipe,
 )
+from gym_soarm.rl.rsl import RSL_LIBRARY, RSL_MODEL_FILE, RSL_VECTOR_ENVS
 from gym_soarm.rl.runs import RunFolder
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
@@ -255,6 +258,8 @@ def train(
     vec_env: str | None = None,
     init: str | os.PathLike[str] | None = None,
     env: Mapping[str, Any] | None = None,
+    vector_env: str | None = None,
+    device: str = "cpu",
 ) -> TrainResult:
     """Train ``algo`` on ``task`` with the package's recipe and write its folder.
 
@@ -279,6 +284,13 @@ def train(
         env: ``gym.make`` keywords over the recipe's environment (e.g. ``{"dynamics":
             PATH}``); checked as :class:`gym_soarm.envs.settings.EnvSettings` checks them, and
             stored in the folder's ``settings.json`` (evaluation uses them).
+        vector_env: one of the package's vector envs (:data:`VECTOR_ENVS
+            <gym_soarm.rl.hyperparams.VECTOR_ENVS>`): PPO on ``"batched"`` or ``"warp"``
+            trains with RSL-RL (:mod:`gym_soarm.rl.rsl`, its own recipe), on
+            ``"processes"`` (and SAC on any but ``"warp"``) with Stable-Baselines3 over it.
+            None (default): the recipe's ``vec_env``.
+        device: where RSL-RL's tensors live: ``"cpu"`` (default) or, with ``vector_env=
+            "warp"``, the Warp env's device (``"cuda"``, ``"cuda:N"``).
 
     Raises:
         ValueError: unknown algorithm or task, a non-positive count, ``out`` a file, an
@@ -286,7 +298,30 @@ def train(
         ImportError: Stable-Baselines3 is not installed (names the extra).
     """
     spec = get_task(task)  # ValueError naming the registered tasks
+    if vector_env is not None and vec_env is not None:
+        raise ValueError(
+            f"pass vector_env ({vector_env!r}) or the older vec_env ({vec_env!r}), not both."
+        )
+    if vector_env is not None or device != "cpu":
+        vector_env = check_choice("vector_env", vector_env or "batched", VECTOR_ENVS)
+        if algo == "ppo" and vector_env in RSL_VECTOR_ENVS:
+            return _train_rsl(
+                spec, out, seed, steps, eval_every, eval_episodes, hyperparams, init, env,
+                vector_env, device,
+            )  # fmt: skip
+        if device != "cpu":
+            raise ValueError(
+                f"device {device!r} applies to PPO on vector_env 'batched' or 'warp' "
+                f"(RSL-RL); got --algo {algo} on {vector_env!r}. Drop --device."
+            )
+        if vector_env == "warp":
+            raise ValueError(
+                f"vector_env 'warp' trains PPO (RSL-RL) only; got --algo {algo}. "
+                "Pass --algo ppo, or --vector-env batched."
+            )
     settings = _checked_settings(algo, spec, env, hyperparams, vec_env, init)
+    if vector_env is not None:
+        settings["vec_env"], settings["vector_env"] = "native", vector_env
     seed = check_int("seed", seed, 0)
     # None takes the recipe's value.
     steps = check_int("steps", settings["steps"] if steps is None else steps, 1)
@@ -400,7 +435,9 @@ def _vector_env(task: str, env_kwargs: dict[str, Any], settings: dict[str, Any],
     if settings["vec_env"] == "native":
         from gym_soarm.rl.native import NativeVecEnv
 
-        venv = VecMonitor(NativeVecEnv(task, env_kwargs, settings["n_envs"]))
+        vector_env = settings.get("vector_env", "auto")
+        native = NativeVecEnv(task, env_kwargs, settings["n_envs"], vector_env=vector_env)
+        venv = VecMonitor(native)
         venv.seed(seed)
     else:
         vec_class = SubprocVecEnv if settings["vec_env"] == "subproc" else DummyVecEnv
@@ -425,3 +462,83 @@ def _model(
 
     algo_class = {"ppo": sb3.PPO, "sac": sb3.SAC}[algo]
     return algo_class("MlpPolicy", venv, seed=seed, device="cpu", **settings["algo"])
+
+
+def _train_rsl(
+    spec: Any,
+    out: str | os.PathLike[str],
+    seed: int,
+    steps: int | None,
+    eval_every: int | None,
+    eval_episodes: int | None,
+    hyperparams: dict[str, Any] | None,
+    init: str | os.PathLike[str] | None,
+    env: Mapping[str, Any] | None,
+    vector_env: str,
+    device: str,
+) -> TrainResult:
+    """PPO with RSL-RL (see :func:`train`): the recipe checked, then the run."""
+    from gym_soarm.rl.rsl import require_rsl, train_rsl
+
+    settings = rsl_recipe(spec.name)
+    settings["env"] = merge_keywords(settings["env"], spec.name, env)
+    override(settings, hyperparams, "ppo (RSL-RL)")
+    seed = check_int("seed", seed, 0)
+    steps = check_int("steps", settings["steps"] if steps is None else steps, 1)
+    every = check_int("eval_every", settings["eval_every"] if eval_every is None else eval_every, 1)
+    episodes = settings["eval_episodes"] if eval_episodes is None else eval_episodes
+    episodes = check_int("eval_episodes", episodes, 1)
+    device = _check_rsl_device(device, vector_env)
+    settings.update(vector_env=vector_env, device=device, library=RSL_LIBRARY)
+    if device.startswith("cuda"):
+        settings["num_envs"] = settings["num_envs_cuda"]
+    if settings["env"].get("obs_type") != "state":
+        raise ValueError(
+            f"PPO on RSL-RL learns from state observations; got obs_type "
+            f"{settings['env'].get('obs_type')!r}. Drop --obs-type."
+        )
+    out_path = Path(out)
+    if out_path.exists() and not out_path.is_dir():
+        raise ValueError(f"out must be a folder; {str(out_path)!r} is a file. Pass a new folder.")
+    source = None if init is None else _check_rsl_init(Path(init), spec.name, settings["env"])
+    require_rsl()
+    pyplot()
+    return train_rsl(spec, out_path, seed, settings, steps, every, episodes, source)
+
+
+def _check_rsl_device(device: str, vector_env: str) -> str:
+    """``device`` checked against ``vector_env``: the batched env lives on the CPU."""
+    if not isinstance(device, str) or not (
+        device == "cpu" or device == "cuda" or device.startswith("cuda:")
+    ):
+        raise ValueError(f"device must be 'cpu', 'cuda' or 'cuda:N'; got {device!r}.")
+    if vector_env == "batched" and device != "cpu":
+        raise ValueError(
+            f"vector_env 'batched' steps on the CPU; got device {device!r}. Pass --device cpu, "
+            "or --vector-env warp for a GPU."
+        )
+    if device.startswith("cuda"):
+        import torch
+
+        if not torch.cuda.is_available():
+            raise ValueError(
+                f"device {device!r}: torch sees no CUDA device here. Pass --device cpu."
+            )
+    return device
+
+
+def _check_rsl_init(folder: Path, task: str, env_kwargs: dict[str, Any]) -> Path:
+    """An ``--init`` folder for RSL-RL: one it trained, on the same task and settings."""
+    settings = read_settings(folder)
+    if settings.get("library") != RSL_LIBRARY or not (folder / RSL_MODEL_FILE).is_file():
+        raise ValueError(
+            f"--init {str(folder)!r} was not trained by PPO on RSL-RL (no {RSL_MODEL_FILE}, "
+            f"library {settings.get('library', 'stable_baselines3')!r}); PPO on "
+            "--vector-env batched or warp starts only from such a folder."
+        )
+    if get_task(settings["task"]).name != task or settings["env"] != env_kwargs:
+        raise ValueError(
+            f"--init {str(folder)!r} was trained on {settings['task']} with {settings['env']}; "
+            f"this run is {task} with {env_kwargs}. Start from a folder of the same task and settings."
+        )
+    return folder
