@@ -10,7 +10,8 @@ Layout (``docs/architecture.md``): ``sim/`` (scene, physics, arrays, backends),
 ``tasks/`` and ``expert/`` (tasks with their experts), ``envs/`` (the step core and the
 environment), ``vector/`` (vector envs), ``real/`` (the real arm), ``record/`` and
 ``data/`` (recording, the dataset format), ``rl/`` (learning), ``render/``, ``teleop/``,
-``lerobot/``, ``bench/`` and ``tools/``, ``cli/`` (the programs).
+``lerobot/``, ``bench/``, ``cli/`` (the programs, the generated docs and the episode
+hashes).
 """
 
 from __future__ import annotations

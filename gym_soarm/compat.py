@@ -1,16 +1,17 @@
-"""The package's earlier module names and the programs' ``python -m`` names.
+"""The package's earlier module names, answered by a finder that ``gym_soarm/__init__.py``
+installs.
 
-The package's folders follow its domains (``docs/architecture.md``). Two kinds of name
-live on without a file of their own, answered by a finder that ``gym_soarm/__init__.py``
-installs:
+``import gym_soarm.env`` still gives the environment's module, now
+:mod:`gym_soarm.envs.env`, with a ``DeprecationWarning`` that names the new home: the
+loader imports the new module and hands it out under the old name (the same module
+object, so pickles that name an old module, snapshots and settings, load too). Nothing
+is compiled or executed here; ``python -m`` with an old name runs the new module's own
+file (its ``get_code``), so ``python -m gym_soarm.tools.docs`` still prints the table.
 
-* **Programs**: ``python -m gym_soarm.train`` (and ``evaluate``, ``replay``, ``sysid``)
-  runs :func:`gym_soarm.cli.train.main` as the console script ``gym-soarm-train`` does;
-  importing ``gym_soarm.train`` runs nothing. (``record``, ``teleop``, ``expert`` and
-  ``bench`` are folders of their domain, each with its ``__main__.py``.)
-* **Moved modules**: ``import gym_soarm.env`` still gives the environment's module, now
-  :mod:`gym_soarm.envs.env`, with a ``DeprecationWarning`` that names the new home.
-  Pickles that name an old module (snapshots, settings) load too.
+The programs' ``python -m`` names are plain modules: ``gym_soarm/train.py`` (and
+``evaluate``, ``replay``, ``sysid``), the ``__main__.py`` of ``gym_soarm/record/``,
+``teleop/``, ``expert/`` and ``bench/``, and ``python -m gym_soarm <program>``
+(``gym_soarm/__main__.py``).
 """
 
 from __future__ import annotations
@@ -18,17 +19,10 @@ from __future__ import annotations
 import importlib
 import importlib.abc
 import importlib.machinery
+import importlib.util
 import sys
 import warnings
 from types import CodeType, ModuleType
-
-PROGRAMS: dict[str, str] = {
-    "gym_soarm.train": "gym_soarm.cli.train",
-    "gym_soarm.evaluate": "gym_soarm.cli.evaluate",
-    "gym_soarm.replay": "gym_soarm.cli.replay",
-    "gym_soarm.sysid": "gym_soarm.cli.sysid",
-}
-"""``python -m`` names of programs without a folder of their own: the module with ``main``."""
 
 MOVED: dict[str, str] = {
     "gym_soarm.env": "gym_soarm.envs.env",
@@ -52,39 +46,51 @@ MOVED: dict[str, str] = {
     "gym_soarm.tools.bench_record": "gym_soarm.bench.bench_record",
     "gym_soarm.tools.bench_vector": "gym_soarm.bench.bench_vector",
     "gym_soarm.tools.timings": "gym_soarm.bench.timings",
+    "gym_soarm.tools.docs": "gym_soarm.cli.docs",
+    "gym_soarm.tools.episode_hashes": "gym_soarm.cli.episode_hashes",
 }
 """Earlier module names and their homes now."""
 
+FOLDED: dict[str, str] = {
+    "gym_soarm.tools": "its modules moved to gym_soarm.bench and gym_soarm.cli",
+}
+"""Earlier packages without a home of their own: an empty package, so that the moved
+names under them (``gym_soarm.tools.docs``) still import."""
 
-class _ProgramLoader(importlib.abc.InspectLoader):
-    """Runs a program's ``main`` when executed as ``__main__`` (``python -m``), and
-    nothing when imported (spawned worker processes import ``__main__`` again as
-    ``__mp_main__``)."""
 
-    def __init__(self, target: str) -> None:
-        self.target = target
+_LATER = "import it from there (the old name goes in a later release)."
 
-    def get_source(self, fullname: str) -> str:
-        return (
-            f'"""``python -m {fullname}``: runs :func:`{self.target}.main`."""\n'
-            'if __name__ == "__main__":\n'
-            "    import sys\n"
-            f"    from {self.target} import main\n"
-            "    sys.exit(main())\n"
-        )
 
-    def get_code(self, fullname: str) -> CodeType:
-        return compile(self.get_source(fullname), f"<{fullname}>", "exec")
+def _importer_level() -> int:
+    """The ``stacklevel`` of the code that imported the old name, for a warning raised
+    here: the first frame outside this module and the import machinery (so that Python
+    shows it by default when that code is ``__main__``)."""
+    frame, level = sys._getframe(1), 1
+    while frame is not None:
+        name = frame.f_code.co_filename
+        if "importlib" in name and "_bootstrap" in name:
+            frame = frame.f_back  # warnings.warn skips these frames itself
+        elif name in (__file__, importlib.__file__):
+            frame, level = frame.f_back, level + 1
+        else:
+            break
+    return level
 
-    def is_package(self, fullname: str) -> bool:
-        return False
 
-    def exec_module(self, module: ModuleType) -> None:
-        exec(self.get_code(module.__name__), module.__dict__)
+def _warn(message: str) -> None:
+    warnings.warn(message, DeprecationWarning, stacklevel=_importer_level())
 
 
 class _MovedLoader(importlib.abc.Loader):
-    """Hands out the module's new home under its old name, with a warning."""
+    """Hands out the module's new home under its old name, with a warning.
+
+    ``create_module`` returns None (a placeholder module); ``exec_module`` imports the new
+    module and puts it in ``sys.modules`` under the old name, and the import system hands
+    out what ``sys.modules`` holds after that call (the import system's documented
+    contract). The new module's own ``__spec__`` and ``__name__`` stay untouched: a
+    ``create_module`` that returned the new module would see its ``__spec__`` replaced
+    by the old name's.
+    """
 
     def __init__(self, target: str) -> None:
         self.target = target
@@ -93,24 +99,42 @@ class _MovedLoader(importlib.abc.Loader):
         return None
 
     def exec_module(self, module: ModuleType) -> None:
-        warnings.warn(
-            f"{module.__name__} moved to {self.target}; import it from there "
-            f"(the old name goes in a later release).",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        # The import system hands out what sys.modules holds after this call.
+        _warn(f"{module.__name__} moved to {self.target}; {_LATER}")
         sys.modules[module.__name__] = importlib.import_module(self.target)
+
+    def get_code(self, fullname: str) -> CodeType | None:
+        """The new module's code, from its own file: what ``python -m <old name>`` runs."""
+        _warn(f"{fullname} moved to {self.target}; {_LATER}")
+        spec = importlib.util.find_spec(self.target)
+        loader = spec.loader if spec is not None else None
+        if not isinstance(loader, importlib.abc.InspectLoader):
+            raise ImportError(f"{self.target} has no code to run", name=fullname)
+        return loader.get_code(self.target)
+
+
+class _FoldedLoader(importlib.abc.Loader):
+    """An empty package in place of a folder that was folded into others."""
+
+    def __init__(self, note: str) -> None:
+        self.note = note
+
+    def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType | None:
+        return None
+
+    def exec_module(self, module: ModuleType) -> None:
+        _warn(f"{module.__name__} is gone: {self.note} (see gym_soarm.compat.MOVED).")
 
 
 class _Finder(importlib.abc.MetaPathFinder):
     def find_spec(
         self, fullname: str, path: object = None, target: object = None
     ) -> importlib.machinery.ModuleSpec | None:
-        if fullname in PROGRAMS:
-            return importlib.machinery.ModuleSpec(fullname, _ProgramLoader(PROGRAMS[fullname]))
         if fullname in MOVED:
             return importlib.machinery.ModuleSpec(fullname, _MovedLoader(MOVED[fullname]))
+        if fullname in FOLDED:
+            return importlib.machinery.ModuleSpec(
+                fullname, _FoldedLoader(FOLDED[fullname]), is_package=True
+            )
         return None
 
 
@@ -120,4 +144,4 @@ def install() -> None:
         sys.meta_path.append(_Finder())
 
 
-__all__ = ["MOVED", "PROGRAMS", "install"]
+__all__ = ["FOLDED", "MOVED", "install"]

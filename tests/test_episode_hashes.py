@@ -1,6 +1,6 @@
 """Same seeds, same episodes, bit for bit, on the machine that runs the tests.
 
-Every task's expert episodes and seeded random steps (:mod:`gym_soarm.tools.episode_hashes`)
+Every task's expert episodes and seeded random steps (:mod:`gym_soarm.cli.episode_hashes`)
 hash the same twice in this process and once more in a fresh Python process. Nothing is
 compared with hashes made elsewhere: floating point differs across CPUs. A guard across a
 refactor records before and checks after, on one machine
@@ -15,8 +15,8 @@ import sys
 
 import pytest
 
+from gym_soarm.cli import episode_hashes as hashes
 from gym_soarm.tasks import BUILTIN_TASKS
-from gym_soarm.tools import episode_hashes as hashes
 
 
 @pytest.fixture(scope="module")

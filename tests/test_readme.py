@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from doc_files import DOCS, README, ROOT, code_after, documentation_files
 
-from gym_soarm.tools.docs import ENV_TABLE_END, ENV_TABLE_START, env_table
+from gym_soarm.cli.docs import ENV_TABLE_END, ENV_TABLE_START, env_table
 
 README_MAX_LINES = 300
 # The README's two commands, byte for byte: .ci/run runs the second one.
@@ -56,7 +56,7 @@ def _relative_links(page: Path) -> list[str]:
 def test_the_environment_table_is_the_registrys():
     text = README.read_text()
     block = text[text.index(ENV_TABLE_START) + len(ENV_TABLE_START) : text.index(ENV_TABLE_END)]
-    assert block.strip() == env_table(), "run python -m gym_soarm.tools.docs and paste its table"
+    assert block.strip() == env_table(), "run python -m gym_soarm.cli.docs and paste its table"
 
 
 def test_the_readme_is_short_and_keeps_the_two_commands():

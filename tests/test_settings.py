@@ -28,6 +28,7 @@ from gym_soarm.cli import settings_table
 from gym_soarm.cli import sysid as sysid_cli
 from gym_soarm.cli import teleop as teleop_cli
 from gym_soarm.cli import train as train_cli
+from gym_soarm.cli.docs import KEYWORDS_PATH, keywords_page
 from gym_soarm.cli.options import SETTINGS_DEST, settings_flag, settings_given
 from gym_soarm.envs.env import SoArmEnv
 from gym_soarm.envs.settings import EnvSettings, keyword_table, merge_keywords
@@ -37,7 +38,6 @@ from gym_soarm.real.sysid import SYSID_SETTINGS
 from gym_soarm.record.record import record
 from gym_soarm.rl.hyperparams import recipe
 from gym_soarm.tasks.suites import SelectedTask
-from gym_soarm.tools.docs import KEYWORDS_PATH, keywords_page
 
 ROOT = Path(__file__).resolve().parents[1]
 NAMES = EnvSettings.names()

@@ -1,4 +1,4 @@
-"""How the benchmarks summarise the repeats of one measurement."""
+"""How the benchmarks summarise the repeats of one measurement, and write a figure."""
 
 from __future__ import annotations
 
@@ -15,3 +15,10 @@ def spread(values: Sequence[float]) -> dict[str, Any]:
         "max": max(values),
         "repeats": list(values),
     }
+
+
+def format_number(x: float) -> str:
+    """A rate for a table: no decimals from 100, one from 10, two below."""
+    if x >= 100:
+        return f"{x:,.0f}"
+    return f"{x:.1f}" if x >= 10 else f"{x:.2f}"

@@ -3,7 +3,7 @@
 Parses the command line, runs :func:`gym_soarm.bench.bench.run` and prints its tables,
 checked targets and the JSON file it wrote. ``--worker`` (hidden) is how the benchmark
 starts each measurement in a fresh process of its own
-(:func:`gym_soarm.bench.bench.serve_worker`).
+(:func:`gym_soarm.bench.jobs.serve_worker`).
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from typing import Any
 
 from gym_soarm.bench import bench, bench_vector
 from gym_soarm.cli.options import add_settings_arguments, settings_given, task_name
+from gym_soarm.cli.programs import program_name
 from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.tasks import DEFAULT_TASK
 
@@ -35,6 +36,33 @@ def _print_scale(report: dict[str, Any]) -> None:
             f"(whole record() call, start-up included; medians of {recording['repeats']})"
         )
         print(bench.format_recording(recording))
+
+
+def _print_report(report: dict[str, Any]) -> None:
+    """The report's tables and checked targets, as the program prints them."""
+    machine = report["machine"]
+    gl = (
+        f", GL: {machine['gl_backend']} ({machine['gl_renderer']})" if machine["gl_backend"] else ""
+    )
+    print(
+        f"\n{machine['cpu']} ({machine['cpu_count']} cores){gl}, load average "
+        f"{machine['load_average_start']}, control mode {report['settings']['control_mode']}"
+    )
+    if report["configs"]:
+        print(bench.format_table(report["configs"]))
+    for cold in report["cold_make"]:
+        if "error" in cold:
+            print(f"cold make ({cold['visual']}): failed: {cold['error']}")
+        else:
+            print(f"cold make ({cold['visual']} meshes, empty cache): {cold['make_s']:.2f} s")
+    _print_scale(report)
+    for check in report["targets"]:
+        sign = ">=" if check["kind"] == "min" else "<"
+        status = "met" if check["met"] else "NOT met"
+        print(
+            f"target {check['config']} {check['figure']} {sign} {check['bound']:g}: "
+            f"{check['value']:.4g} ({status})"
+        )
 
 
 BENCH_EXCLUDES: tuple[str, ...] = (
@@ -59,7 +87,7 @@ def env_changes(args: argparse.Namespace) -> dict[str, Any]:
 def build_parser() -> argparse.ArgumentParser:
     """The program's command line."""
     parser = argparse.ArgumentParser(
-        prog="python -m gym_soarm.bench",
+        prog=program_name("bench"),
         description="Measure env steps/s, make/reset time and memory against MuJoCo's own "
         "ceiling (bare mj_step, bare mujoco.Renderer) on this machine.",
     )
@@ -204,29 +232,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     except ValueError as exc:
         parser.error(str(exc))
-    machine = report["machine"]
-    gl = (
-        f", GL: {machine['gl_backend']} ({machine['gl_renderer']})" if machine["gl_backend"] else ""
-    )
-    print(
-        f"\n{machine['cpu']} ({machine['cpu_count']} cores){gl}, load average "
-        f"{machine['load_average_start']}, control mode {report['settings']['control_mode']}"
-    )
-    if report["configs"]:
-        print(bench.format_table(report["configs"]))
-    for cold in report["cold_make"]:
-        if "error" in cold:
-            print(f"cold make ({cold['visual']}): failed: {cold['error']}")
-        else:
-            print(f"cold make ({cold['visual']} meshes, empty cache): {cold['make_s']:.2f} s")
-    _print_scale(report)
-    for check in report["targets"]:
-        sign = ">=" if check["kind"] == "min" else "<"
-        status = "met" if check["met"] else "NOT met"
-        print(
-            f"target {check['config']} {check['figure']} {sign} {check['bound']:g}: "
-            f"{check['value']:.4g} ({status})"
-        )
+    _print_report(report)
     Path(args.json).write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
     print(f"wrote {args.json}")
     failed = any("error" in r for r in report["configs"] + report["vector_scaling"])

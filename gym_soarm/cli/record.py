@@ -17,6 +17,7 @@ from gym_soarm.cli.options import (
     settings_from_args,
     task_selection,
 )
+from gym_soarm.cli.programs import program_name
 from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.record.record import (
     CAMERA_CONFIG_CHOICES,
@@ -52,7 +53,7 @@ def env_settings(args: argparse.Namespace) -> EnvSettings:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m gym_soarm.record",
+        prog=program_name("record"),
         description="Record scripted-expert demonstrations of gym_soarm as a LeRobotDataset v3.0.",
     )
     parser.add_argument(

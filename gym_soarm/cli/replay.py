@@ -19,12 +19,13 @@ from gym_soarm.cli.options import (
     settings_except,
     settings_given,
 )
+from gym_soarm.cli.programs import program_name
 from gym_soarm.real.replay import REPLAY_OVERRIDES, plot_replay, replay
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m gym_soarm.replay",
+        prog=program_name("replay"),
         description="Replay a LeRobot SO-101 dataset's actions in the simulation and report, "
         "per joint, the error between the simulated and the recorded observation.state.",
     )

@@ -1,6 +1,6 @@
 """``python -m gym_soarm.cli.settings_table``: write (or check) ``docs/keywords.md``.
 
-The page is :func:`gym_soarm.tools.docs.keywords_page`, generated from the fields of
+The page is :func:`gym_soarm.cli.docs.keywords_page`, generated from the fields of
 :class:`gym_soarm.envs.settings.EnvSettings`; a test keeps the committed page current.
 """
 
@@ -11,7 +11,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from gym_soarm.tools.docs import KEYWORDS_PATH, keywords_page
+from gym_soarm.cli.docs import KEYWORDS_PATH, keywords_page
 
 
 def main(argv: Sequence[str] | None = None) -> int:

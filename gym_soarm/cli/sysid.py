@@ -18,13 +18,14 @@ from gym_soarm.cli.options import (
     settings_except,
     settings_given,
 )
+from gym_soarm.cli.programs import program_name
 from gym_soarm.real.dynamics import write_dynamics
 from gym_soarm.real.sysid import DELAYS, FIT_ITERATIONS, SYSID_SETTINGS, fit_dynamics, plot_fit
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m gym_soarm.sysid",
+        prog=program_name("sysid"),
         description="Replay a LeRobot SO-101 dataset's actions in the simulation and fit, per "
         "joint, the servo gains (kp, kv) and the joint's damping, armature and friction loss, "
         "and the control delay, to its recorded observation.state. Writes a "

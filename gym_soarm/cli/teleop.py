@@ -21,6 +21,7 @@ from gym_soarm.cli.options import (
     settings_from_args,
     task_name,
 )
+from gym_soarm.cli.programs import program_name
 from gym_soarm.data import LeRobotDatasetWriter
 from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.record.record import (
@@ -67,7 +68,7 @@ def _key_map_text() -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m gym_soarm.teleop",
+        prog=program_name("teleop"),
         description="Drive the SO-101's jaw centre in the robot's base frame from the keyboard "
         "(or a gamepad) in a window that shows the cameras, and record the episodes as a "
         "LeRobotDataset v3.0 (with --root or --repo-id; without them it only drives). The "

@@ -28,6 +28,7 @@ from gym_soarm.cli.options import (
     settings_given,
     task_name,
 )
+from gym_soarm.cli.programs import program_name
 from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.rl.hyperparams import IMITATION, TRAINERS, VEC_ENVS
 from gym_soarm.tasks import task_names
@@ -71,7 +72,7 @@ def env_changes(args: argparse.Namespace) -> dict[str, Any]:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m gym_soarm.train",
+        prog=program_name("train"),
         description="Train PPO or SAC on a task's state observations with the package's "
         "recipe, or imitate the task's scripted expert (bc: behaviour cloning with DART "
         "noise, dagger: DAgger); writes model.zip, settings.json, curve.csv and curve.png "

@@ -41,8 +41,9 @@ import contextlib
 import os
 import signal
 import statistics
+import subprocess
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
 from typing import Any
 
@@ -50,7 +51,9 @@ import gymnasium as gym
 import numpy as np
 
 import gym_soarm  # noqa: F401  (registers the environments)
+from gym_soarm.bench.child import one_shot
 from gym_soarm.bench.timings import spread
+from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.vector.workers import cpu_count, end_process, worker_context
 
 DEFAULT_ENV_ID = "gym_soarm/LiftCube-v0"
@@ -318,6 +321,93 @@ class Ceiling:
         self.runners = []
 
 
+def _round_rates(
+    single: gym.Env,
+    single_actions: np.ndarray,
+    measurers: dict[str, Any],
+    rates: dict[str, list[float]],
+    seconds: float,
+    rounds: int,
+) -> None:
+    """``rounds`` rounds of every figure in turn (nobody always goes first), appended to
+    ``rates``: ``single``, then each of ``measurers`` (a callable ``rate(seconds)``)."""
+    order = ["single", *measurers]
+    for round_index in range(rounds):
+        shift = round_index % len(order)
+        for name in order[shift:] + order[:shift]:
+            if name == "single":
+                rates[name].append(single_rate(single, single_actions, seconds))
+            else:
+                rates[name].append(measurers[name](seconds))
+
+
+def _count_rates(
+    env_id: str,
+    n: int,
+    kwargs: dict[str, Any],
+    modes: Sequence[str],
+    single: tuple[gym.Env, np.ndarray],
+    batches: np.ndarray,
+    seconds: float,
+    rounds: int,
+    num_processes: int | None,
+) -> dict[str, list[float]]:
+    """Every figure of ``n`` environments over ``rounds``: the single env, the ceiling,
+    the bare physics, ``mujoco.rollout`` and each vector env of ``modes``."""
+    vectors: dict[str, gym.vector.VectorEnv] = {}
+    ceiling = Ceiling(env_id, kwargs, n, num_processes)
+    physics = BatchPhysics(env_id, kwargs, n, num_processes)
+    rollout = RolloutPhysics(env_id, kwargs, n, num_processes)
+    names = ["single", "ceiling", "physics", "rollout", *modes]
+    rates: dict[str, list[float]] = {name: [] for name in names}
+    try:
+        for mode in modes:
+            vectors[mode] = make_vector(env_id, n, mode, kwargs, num_processes)
+            vectors[mode].reset(seed=0)
+            vectors[mode].step(batches[0])  # warm up (GL contexts, pipes)
+        ceiling.rate(0.05)  # warm up (every process built and stepping)
+        measurers = {"ceiling": ceiling.rate, "physics": physics.rate, "rollout": rollout.rate}
+        for mode in modes:
+            measurers[mode] = lambda t, envs=vectors[mode]: vector_rate(envs, batches, t)
+        _round_rates(*single, measurers, rates, seconds, rounds)
+    finally:
+        for envs in vectors.values():
+            envs.close()
+        ceiling.close()
+        rollout.close()
+    return rates
+
+
+def _median_ratio(a: Sequence[float], b: Sequence[float]) -> float:
+    return statistics.median(x / y for x, y in zip(a, b, strict=True))
+
+
+def _count_rows(n: int, modes: Sequence[str], rates: dict[str, list[float]]) -> list[dict]:
+    """The rows of one count: a row per mode, its rates put against the others."""
+    single = rates["single"]
+    ceiling_per_round = [c / s for c, s in zip(rates["ceiling"], single, strict=True)]
+    rows = []
+    for mode in modes:
+        speedups = [v / s for v, s in zip(rates[mode], single, strict=True)]
+        rows.append(
+            {
+                "mode": mode,
+                "num_envs": n,
+                "steps_per_s": spread(rates[mode]),
+                "single_steps_per_s": statistics.median(single),
+                "speedup": statistics.median(speedups),
+                "ceiling_speedup": statistics.median(ceiling_per_round),
+                "ratio_to_ceiling": _median_ratio(speedups, ceiling_per_round),
+                "batch_physics_steps_per_s": statistics.median(rates["physics"]),
+                "ratio_to_physics": _median_ratio(rates[mode], rates["physics"]),
+                "rollout_steps_per_s": statistics.median(rates["rollout"]),
+                "ratio_to_rollout": _median_ratio(rates[mode], rates["rollout"]),
+                "single_to_physics": _median_ratio(single, rates["physics"]) if n == 1 else None,
+            }
+        )
+    return rows
+
+
 def measure(
     env_id: str,
     num_envs: Sequence[int],
@@ -353,73 +443,19 @@ def measure(
     try:
         for n in num_envs:
             batches = rng.uniform(low, high, (N_ACTIONS, n, len(low))).astype(np.float32)
-            vectors: dict[str, gym.vector.VectorEnv] = {}
-            ceiling = Ceiling(env_id, kwargs, n, num_processes)
-            physics = BatchPhysics(env_id, kwargs, n, num_processes)
-            rollout = RolloutPhysics(env_id, kwargs, n, num_processes)
-            rates: dict[str, list[float]] = {
-                "single": [],
-                "ceiling": [],
-                "physics": [],
-                "rollout": [],
-            } | {m: [] for m in modes}
-            try:
-                for mode in modes:
-                    vectors[mode] = make_vector(env_id, n, mode, kwargs, num_processes)
-                    vectors[mode].reset(seed=0)
-                    vectors[mode].step(batches[0])  # warm up (GL contexts, pipes)
-                ceiling.rate(0.05)  # warm up (every process built and stepping)
-                order = ["single", "ceiling", "physics", "rollout", *modes]
-                for round_index in range(rounds):
-                    shift = round_index % len(order)  # nobody always goes first
-                    for name in order[shift:] + order[:shift]:
-                        if name == "single":
-                            rates[name].append(single_rate(single, single_actions, seconds))
-                        elif name == "ceiling":
-                            rates[name].append(ceiling.rate(seconds))
-                        elif name == "physics":
-                            rates[name].append(physics.rate(seconds))
-                        elif name == "rollout":
-                            rates[name].append(rollout.rate(seconds))
-                        else:
-                            rates[name].append(vector_rate(vectors[name], batches, seconds))
-            finally:
-                for envs in vectors.values():
-                    envs.close()
-                ceiling.close()
-                rollout.close()
+            rates = _count_rates(
+                env_id,
+                n,
+                kwargs,
+                modes,
+                (single, single_actions),
+                batches,
+                seconds,
+                rounds,
+                num_processes,
+            )
             single_rates.extend(rates["single"])
-            ceiling_per_round = [
-                c / s for c, s in zip(rates["ceiling"], rates["single"], strict=True)
-            ]
-            for mode in modes:
-                speedups = [v / s for v, s in zip(rates[mode], rates["single"], strict=True)]
-                rows.append(
-                    {
-                        "mode": mode,
-                        "num_envs": n,
-                        "steps_per_s": spread(rates[mode]),
-                        "single_steps_per_s": statistics.median(rates["single"]),
-                        "speedup": statistics.median(speedups),
-                        "ceiling_speedup": statistics.median(ceiling_per_round),
-                        "ratio_to_ceiling": statistics.median(
-                            v / c for v, c in zip(speedups, ceiling_per_round, strict=True)
-                        ),
-                        "batch_physics_steps_per_s": statistics.median(rates["physics"]),
-                        "ratio_to_physics": statistics.median(
-                            v / p for v, p in zip(rates[mode], rates["physics"], strict=True)
-                        ),
-                        "rollout_steps_per_s": statistics.median(rates["rollout"]),
-                        "ratio_to_rollout": statistics.median(
-                            v / r for v, r in zip(rates[mode], rates["rollout"], strict=True)
-                        ),
-                        "single_to_physics": statistics.median(
-                            s / p for s, p in zip(rates["single"], rates["physics"], strict=True)
-                        )
-                        if n == 1
-                        else None,
-                    }
-                )
+            rows.extend(_count_rows(n, modes, rates))
     finally:
         single.close()
     return {
@@ -475,3 +511,38 @@ def title(report: dict[str, Any]) -> str:
         f"({report['cpus']} cores{load_text}); ceiling: the environments on "
         f"{report['ceiling_processes']} free-running processes"
     )
+
+
+def measure_vector_scaling(
+    counts: Sequence[int],
+    obs: str,
+    size: tuple[int, int],
+    seconds: float,
+    repeats: int,
+    task: str = DEFAULT_TASK,
+    modes: Sequence[str] | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Scaling of the vector envs with ``obs`` observations, in a fresh process.
+
+    What ``python -m gym_soarm.bench --vector-scaling`` runs. Returns :func:`measure`'s
+    report, or ``{"obs": obs, "error": ...}`` when the process failed.
+    """
+    modes = list(modes or VECTOR_MODES)
+    if progress is not None:
+        progress(f"measuring vector scaling ({obs}, num_envs {','.join(map(str, counts))}) ...")
+    job = {
+        "kind": "vector_scaling",
+        "env_id": get_task(task).env_id,
+        "counts": list(counts),
+        "obs": obs,
+        "size": list(size),
+        "seconds": seconds,
+        "repeats": repeats,
+        "modes": modes,
+    }
+    timeout = 300 + len(counts) * (60 + (len(modes) + 1) * repeats * seconds * 3)
+    try:
+        return one_shot(job, timeout)
+    except (RuntimeError, subprocess.TimeoutExpired, OSError) as exc:
+        return {"obs": obs, "error": str(exc)}

@@ -1,0 +1,16 @@
+"""``python -m gym_soarm.evaluate``: the program's ``-m`` name (also ``gym-soarm-evaluate`` and
+``python -m gym_soarm evaluate``).
+
+The program is :func:`gym_soarm.cli.evaluate.main`; importing this module runs nothing.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from gym_soarm.cli.evaluate import main
+
+__all__ = ["main"]
+
+if __name__ == "__main__":  # spawn and forkserver workers import this file again: run nothing
+    sys.exit(main())
