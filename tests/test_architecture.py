@@ -209,7 +209,9 @@ def test_every_way_in_leads_to_gym_soarm_cli():
         )
         assert module in modules, f"console script {script}: no module {module}"
     shims = sorted(PACKAGE.rglob("__main__.py")) + program_modules()
-    assert len(program_modules()) == 4, "gym_soarm/train.py, evaluate.py, replay.py, sysid.py"
+    assert len(program_modules()) == 5, (
+        "gym_soarm/train.py, evaluate.py, replay.py, sysid.py, kernels.py"
+    )
     for path in shims:
         imported = imports_of(_module_name(path, PACKAGE), path, modules)
         assert len(imported) == 1 and next(iter(imported)).startswith("gym_soarm.cli."), (

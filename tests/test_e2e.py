@@ -366,7 +366,7 @@ def test_state_observations_render_nothing(state_env):
     state_env.reset(seed=0)
     for _ in range(3):
         state_env.step(state_env.action_space.sample())
-    assert state_env.unwrapped._renderers == {}
+    assert state_env.unwrapped._observer.renderers == {}
 
 
 def test_sparse_reward_is_the_success_flag(make_env):

@@ -71,9 +71,9 @@ def test_close_frees_every_renderer_and_is_safe_twice():
     env.reset(seed=0)
     env.render()
     env.unwrapped.render_camera_image("wrist_camera", height=32, width=32)  # a second size
-    renderers = list(env.unwrapped._renderers.values())
+    renderers = list(env.unwrapped._observer.renderers.values())
     assert len(renderers) == 2 and all(r in rendering._live_renderers for r in renderers)
     env.close()
     assert not any(r in rendering._live_renderers for r in renderers)
-    assert env.unwrapped._renderers == {}
+    assert env.unwrapped._observer.renderers == {}
     env.close()

@@ -16,7 +16,7 @@ ALL = ("rgb", "depth", "segmentation")
 
 
 def _renderer(env):
-    (renderer,) = env.unwrapped._renderers.values()
+    (renderer,) = env.unwrapped._observer.renderers.values()
     return renderer
 
 

@@ -21,7 +21,8 @@ from gymnasium.vector import AutoresetMode
 
 from gym_soarm.rl.evaluation import TrainedPolicy, read_settings, score
 from gym_soarm.rl.hyperparams import rsl_recipe
-from gym_soarm.rl.rsl import RSL_LIBRARY, make_rsl_env
+from gym_soarm.rl.rsl import make_rsl_env
+from gym_soarm.rl.rsl_policy import RSL_LIBRARY
 from gym_soarm.rl.training import train
 from gym_soarm.tasks.suites import EVAL_SEED
 from gym_soarm.vector.batched import make_vector_env
@@ -47,7 +48,7 @@ def test_adapter_gives_rsl_rl_the_batched_env_as_tensors_with_time_outs():
         assert obs["policy"].dtype == torch.float32
         np.testing.assert_array_equal(obs["policy"].numpy(), expected.astype(np.float32))
         rng = np.random.default_rng(0)
-        for step in range(1, 121):
+        for _step in range(1, 121):
             action = rng.uniform(-1, 1, (3, env.num_actions)).astype(np.float32)
             obs, rewards, dones, extras = env.step(torch.as_tensor(action))
             expected, ref_rewards, terminated, truncated, info = reference.step(action)
@@ -68,7 +69,7 @@ def test_adapter_gives_rsl_rl_the_batched_env_as_tensors_with_time_outs():
                 success = np.asarray(info["final_info"]["is_success"])[ended]
                 assert extras["log"]["/success"] == pytest.approx(float(success.mean()))
         # Random actions never reach the target: every episode ran to the time limit.
-        assert step == 120 and bool(truncated.all()) and float(extras["time_outs"].sum()) == 3
+        assert _step == 120 and bool(truncated.all()) and float(extras["time_outs"].sum()) == 3
     finally:
         env.close()
         reference.close()

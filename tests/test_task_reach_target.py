@@ -88,7 +88,7 @@ def test_the_front_camera_sees_the_target_at_every_reset():
             saved = model.geom_rgba[geoms].copy(), model.geom_matid[geoms].copy()
             model.geom_rgba[geoms], model.geom_matid[geoms] = 0.0, -1
             try:
-                hidden = env.unwrapped._observation()
+                hidden = env.unwrapped.observation()
             finally:
                 model.geom_rgba[geoms], model.geom_matid[geoms] = saved
             changed = np.abs(obs["front_camera"].astype(int) - hidden["front_camera"]).max(-1)

@@ -228,7 +228,7 @@ def test_cameras_see_every_object_and_fixture(task):
         physics = env.unwrapped.physics
         physics.set_joint_angles(np.array(ARM_ASIDE_RAD))
         physics.forward()
-        obs = env.unwrapped._observation()
+        obs = env.unwrapped.observation()
         model = physics.model.ptr
         names = [*physics.object_names, *physics.fixture_names]
         assert names, "a task has something on the table"
@@ -239,7 +239,7 @@ def test_cameras_see_every_object_and_fixture(task):
             model.geom_matid[geoms] = -1
             model.geom_rgba[geoms] = 0.0
             try:
-                hidden, _ = env.unwrapped._observation(), None
+                hidden, _ = env.unwrapped.observation(), None
             finally:
                 model.geom_matid[geoms], model.geom_rgba[geoms] = saved
             for camera in ("overview_camera", "front_camera"):

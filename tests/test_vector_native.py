@@ -359,10 +359,10 @@ def test_a_block_that_raises_leaves_the_others_readable():
     envs = SoArmVectorEnv(4, num_processes=2, task="LiftCube-v0", **STATE)
     try:
         envs.reset(seed=0)
-        assert envs.call_some([3], "__setattr__", "_validate_action", None) == {3: None}
+        assert envs.call_some([3], "__setattr__", "_check_open", None) == {3: None}
         with pytest.raises(TypeError, match="not callable"):
             envs.step(np.zeros((4, 6), np.float32))
-        envs.call_some([3], "__delattr__", "_validate_action")
+        envs.call_some([3], "__delattr__", "_check_open")
         _, _, _, _, info = envs.step(np.zeros((4, 6), np.float32))
         assert info["_is_success"].all() and info["task"].shape == (4,)
         with pytest.raises(ValueError, match="index must be an int from 0 to 3"):

@@ -36,6 +36,7 @@ PROGRAMS: dict[str, Program] = {
     "replay": Program("gym_soarm.cli.replay", "replay a LeRobot SO-101 dataset's actions"),
     "sysid": Program("gym_soarm.cli.sysid", "fit the simulated servos to a LeRobot dataset"),
     "bench": Program("gym_soarm.cli.bench", "the speed benchmark"),
+    "kernels": Program("gym_soarm.cli.kernels", "build Warp's CUDA kernels for a GPU, without one"),
 }
 """Every program (each a console script ``gym-soarm-<name>``) and its module."""
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import ast
 import logging
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -30,7 +31,7 @@ from gym_soarm.cli.options import (
 )
 from gym_soarm.cli.programs import program_name
 from gym_soarm.envs.settings import EnvSettings
-from gym_soarm.rl.hyperparams import IMITATION, TRAINERS, VEC_ENVS
+from gym_soarm.rl.hyperparams import IMITATION, TRAINERS, VEC_ENVS, VECTOR_ENVS
 from gym_soarm.tasks import task_names
 
 
@@ -117,12 +118,20 @@ def build_parser() -> argparse.ArgumentParser:
         "learning_starts=100, or demos=50 rounds=3 for bc/dagger (Python literals)",
     )
     parser.add_argument(
+        "--vector-env",
+        choices=VECTOR_ENVS,
+        default=None,
+        help="the package's vector env the environments step in: PPO trains with RSL-RL on "
+        "batched (the CPU) and warp (MuJoCo Warp, --device cuda), with Stable-Baselines3 on "
+        "processes; SAC with Stable-Baselines3 on batched or processes; default: the "
+        "recipe's (Stable-Baselines3 on the batched env for state observations)",
+    )
+    parser.add_argument(
         "--vec-env",
         choices=VEC_ENVS,
         default=None,
-        help="how the environments are stepped: native (one process per CPU), dummy (this "
-        "process) or subproc (one process each); default: the recipe's (native); ppo and "
-        "sac only",
+        help="deprecated (use --vector-env): Stable-Baselines3's stepping, native (the "
+        "package's vector env), dummy (this process) or subproc (one process each)",
     )
     parser.add_argument(
         "--init",
@@ -134,8 +143,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--device",
         default="cpu",
-        help="where a pixel student trains: cpu (default), cuda or cuda:N (bc and dagger "
-        "with --obs-type pixels_agent_pos)",
+        help="where a pixel student trains (bc and dagger with --obs-type "
+        "pixels_agent_pos), or PPO on RSL-RL's tensors live (--vector-env warp): cpu "
+        "(default), cuda or cuda:N",
     )
     parser.add_argument(
         "--no-progress", action="store_true", help="no progress bar (e.g. in log files)"
@@ -156,6 +166,7 @@ IMITATION_REFUSED: dict[str, str] = {
     "--hyperparams demos=N",
     "--eval-every": "it evaluates after each round",
     "--vec-env": "it runs the recipe's n_envs episodes side by side in this process",
+    "--vector-env": "it runs the recipe's n_envs episodes side by side in this process",
     "--init": "it starts from the expert's demonstrations, while --init starts PPO from a "
     "trained policy (--algo ppo --init DIR)",
 }
@@ -167,12 +178,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", force=True)
+    if args.vec_env is not None:
+        warnings.warn(
+            "--vec-env is deprecated; pass --vector-env batched or processes (the package's "
+            "vector envs). --vec-env native, dummy and subproc still train as before.",
+            FutureWarning,
+            stacklevel=1,
+        )
     try:
         if args.algo in IMITATION:
             for flag, value in (
                 ("--steps", args.steps),
                 ("--eval-every", args.eval_every),
                 ("--vec-env", args.vec_env),
+                ("--vector-env", args.vector_env),
                 ("--init", args.init),
             ):
                 if value is not None:
@@ -194,7 +213,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             )
         else:
             pixel_flags = sorted(set(env_changes(args)) & set(PIXEL_SETTINGS))
-            if pixel_flags or args.device != "cpu":
+            if pixel_flags or (args.device != "cpu" and args.vector_env is None):
                 given = pixel_flags or ["device"]
                 raise ValueError(
                     f"--algo {args.algo} learns from the state vector; "
@@ -217,6 +236,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 vec_env=args.vec_env,
                 init=args.init,
                 env=env_changes(args),
+                vector_env=args.vector_env,
+                device=args.device,
             )
     except (ValueError, TypeError) as exc:  # refused input: argparse's usage error, exit 2
         parser.error(str(exc))

@@ -6,7 +6,10 @@ all of them once, when it is made. ``SoArmEnv`` builds one from its keywords
 (``env.unwrapped.settings``) and also takes one whole (``gym.make(id, settings=s)``); the
 programs generate their command-line flags from the fields
 (:func:`gym_soarm.cli.settings.add_settings_arguments`) and recordings store them
-(:meth:`EnvSettings.to_json`). A new keyword is one field here and its use in ``env.py``.
+(:meth:`EnvSettings.to_json`). A new keyword is one field here (with its description in
+the class docstring) and its use where the environment is built (``world.py``) or reads it.
+:func:`resolve_settings` is how ``SoArmEnv`` turns its arguments into settings, and
+:func:`setting_property` makes each field an attribute of the environment.
 
 >>> from gym_soarm.envs.settings import EnvSettings
 >>> s = EnvSettings(task="lift", obs_type="state", servo_model="sts3215")
@@ -138,11 +141,68 @@ def _check_task(name: str, value: Any) -> str:
 class EnvSettings:
     """Every keyword of ``gym.make`` for a gym_soarm environment, checked once.
 
-    Fields keep the keywords' names, types and defaults (see :class:`gym_soarm.envs.env.SoArmEnv`
-    for what each does); making an instance checks every field and normalises a few:
-    ``task`` becomes the registered name (``"lift"`` -> ``"LiftCube-v0"``),
-    ``camera_config`` the tuple of camera names, ``image_modalities`` a tuple in the
-    fixed order, paths plain strings, numbers plain ``int``/``float``.
+    Fields keep the keywords' names, types and defaults (of
+    :class:`gym_soarm.envs.env.SoArmEnv`); making an instance checks every field and
+    normalises a few: ``task`` becomes the registered name (``"lift"`` ->
+    ``"LiftCube-v0"``), ``camera_config`` the tuple of camera names, ``image_modalities``
+    a tuple in the fixed order, paths plain strings, numbers plain ``int``/``float``.
+
+    Attributes:
+        task: a registered task's name (``"PickAndPlaceCube-v0"``, ``"LiftCube-v0"``, ...;
+            see :func:`gym_soarm.tasks.task_names`) or one of its aliases.
+        obs_type: one of :data:`OBS_TYPES` (see :mod:`gym_soarm.envs.spaces`).
+        camera_config: ``"front_only"``, ``"front_wrist"``, ``"all"`` or camera names.
+        observation_height: image height in pixels (16 to 2048).
+        observation_width: image width in pixels (16 to 2048).
+        render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
+        render_camera: camera returned by ``render()`` in ``rgb_array`` mode.
+        render_quality: ``"fast"`` (simplified visual meshes; no shadows, reflections or
+            multisampling) or ``"high"`` (full-detail meshes, shadows, reflections and
+            4x multisampling). The physics is the same for both.
+        reward_type: ``"dense"`` (weighted named terms in [0, 1]) or ``"sparse"``.
+        units: joint units of actions and ``agent_pos``: ``"radians"``, ``"lerobot"``
+            or ``"lerobot_range"``.
+        wrist_roll_offset_deg: with LeRobot units, the real arm's wrist_roll reading
+            (degrees, -180 to 180) when the model's wrist_roll is at 0 rad; wrist_roll
+            values are shifted by it and wrapped to a turn (see :mod:`gym_soarm.real.units`).
+        image_modalities: images of each camera in pixel observations: a tuple of
+            ``"rgb"``, ``"depth"`` and ``"segmentation"`` (see
+            :mod:`gym_soarm.envs.spaces`); only these are rendered.
+        visual_randomization: ``"none"``, ``"light"`` or ``"heavy"``: lights, table,
+            floor and object colours and the cameras drawn anew at every reset (see
+            :mod:`gym_soarm.sim.randomization`); the reset's ``info["variation"]`` says
+            what was drawn.
+        physics_randomization: ``"none"``, ``"light"`` or ``"heavy"``: object mass and
+            friction, servo gains and joint damping (+-10 % or +-30 %), and with
+            ``"heavy"`` a control delay of 0 or 1 steps, drawn at every reset.
+        servo_model: ``"ideal"`` (the servo targets are the actions) or ``"sts3215"``
+            (the follower's Feetech STS3215: speed-limited, quantised targets with
+            backlash and its stall torque as force range; see
+            :class:`gym_soarm.sim.randomization.Sts3215Servo`).
+        object_placement: ``"grid"`` or ``"uniform"``: how the task's objects start;
+            None: the task's default.
+        distractors: extra objects on the table (0 to
+            :data:`~gym_soarm.tasks.distractors.MAX_DISTRACTORS`), placed at every reset.
+        control_mode: what an action means: ``"joint_pos"`` (absolute servo targets),
+            ``"joint_delta"`` (changes of the servo targets), ``"ee_delta"`` (changes of
+            the jaws' pose) or ``"ee_pose"`` (the jaws' pose); see
+            :mod:`gym_soarm.envs.control`. The ee modes add ``ik_error_m`` and
+            ``ik_error_rad`` to ``info``.
+        calibration: with LeRobot units, the path of a real SO-101 follower's LeRobot
+            calibration JSON: actions, ``agent_pos`` and their bounds are then that arm's
+            values, as LeRobot's motor bus normalises them (see
+            :mod:`gym_soarm.real.calibration`). None: the fixed maps of :mod:`gym_soarm.real.units`.
+        dynamics: the path of a ``gym_soarm.dynamics/1`` JSON file (fitted to a real arm
+            by ``python -m gym_soarm.sysid``): its servo gains, joint damping, armature,
+            friction loss and control delay replace the model's on this environment's
+            own model copy; with ``physics_randomization`` the draws centre on them (see
+            :mod:`gym_soarm.real.dynamics`). None: the model's own.
+        normalize_actions: ``True``: actions are ``Box(-1, 1, (6,), float32)``, mapped
+            linearly onto the control mode's own Box (-1 to its low bound, +1 to its
+            high bound), for every control mode; the RL recipes use it.
+        control_hz: control steps (and video and dataset frames) a second: 50, or 30 as
+            LeRobot records; one that whole physics steps fill (see
+            :mod:`gym_soarm.sim.timing`).
 
     Raises:
         ValueError: a value that is not valid; the message names the keyword, what was
@@ -392,6 +452,83 @@ def keyword_table() -> str:
         flag = "--" + item.name.replace("_", "-")
         lines.append(f"| `{item.name}` | `{flag}` | `{kind}` | `{item.default!r}` | {doc} |")
     return "\n".join(lines) + "\n"
+
+
+# --- an environment's settings --------------------------------------------------------------
+_DEFAULTS: dict[str, Any] = {item.name: item.default for item in dataclasses.fields(EnvSettings)}
+
+
+def _differs(value: Any, default: Any) -> bool:
+    try:
+        return bool(value != default)
+    except (TypeError, ValueError):  # e.g. an array compared with a str
+        return True
+
+
+def resolve_settings(
+    scope: Mapping[str, Any], settings: Any = None, unknown: Mapping[str, Any] | None = None
+) -> EnvSettings:
+    """The settings of an environment made with the keywords of ``scope`` or ``settings``.
+
+    Every value is checked once, before anything is built.
+
+    Args:
+        scope: ``SoArmEnv.__init__``'s arguments by name (its ``locals()``): a value for
+            every field of :class:`EnvSettings`; the other names are left out.
+        settings: a whole :class:`EnvSettings`, or None (the keywords are used).
+        unknown: keywords that are no field: an error naming the closest ones.
+
+    Raises:
+        TypeError: an unknown keyword, ``settings`` that is no :class:`EnvSettings`, or
+            ``settings`` beside keywords that differ from their defaults (a registered
+            id's own ``task`` is allowed when the settings name the same task).
+        ValueError: a bad value.
+    """
+    keywords = {name: scope[name] for name in _DEFAULTS}
+    if unknown:  # an error naming the closest keywords, before anything is built
+        EnvSettings.from_kwargs(**keywords, **unknown)
+    if settings is None:
+        return EnvSettings.from_kwargs(**keywords)
+    if not isinstance(settings, EnvSettings):
+        raise ArgumentTypeError(
+            f"settings must be a gym_soarm.envs.settings.EnvSettings; got "
+            f"{type(settings).__name__}. Build one with EnvSettings(...) or "
+            "EnvSettings.from_kwargs(...)."
+        )
+    given = {k: v for k, v in keywords.items() if _differs(v, _DEFAULTS[k])}
+    # A registered id passes its own task: fine when the settings name it too.
+    if "task" in given and get_task(given["task"]).name == settings.task:
+        del given["task"]
+    if given:
+        raise TypeError(
+            f"pass either settings or keywords, not both; got settings and "
+            f"{sorted(given)}. Use settings.replace({'=..., '.join(sorted(given))}=...)."
+        )
+    return settings
+
+
+def setting_property(name: str, *, settable: bool = False) -> property:
+    """A :class:`~gym_soarm.envs.env.SoArmEnv` attribute that reads the field ``name`` of
+    its ``settings``.
+
+    ``settable``: assigning it (``env.reward_type = "sparse"``, a vector env's
+    ``set_attr``) replaces the environment's settings (its ``_settings``) by a copy with
+    the new value, checked; else assigning raises ``AttributeError``.
+    """
+
+    def get(env: Any) -> Any:
+        return getattr(env.settings, name)
+
+    def set_(env: Any, value: Any) -> None:
+        if not settable:
+            raise AttributeError(
+                f"{name} is fixed when the environment is made; make another one with "
+                f"gym.make(..., {name}=...) (or settings=env.unwrapped.settings.replace(...))."
+            )
+        env._settings = env.settings.replace(**{name: value})
+
+    (item,) = (item for item in setting_fields() if item.name == name)
+    return property(get, set_, doc=f"The ``{name}`` setting: {item.metadata['doc']}.")
 
 
 def merge_keywords(

@@ -19,6 +19,22 @@ simulation settings (:data:`SIMULATION_SETTINGS`):
 
 Restoring writes all of it back, so the same actions then give bit for bit the same
 observations, rewards, terminations and infos as the original environment would.
+
+A snapshot of other simulation settings is refused with a ``ValueError`` naming both
+values. The settings that do not change the simulation (``obs_type``, ``control_mode``,
+``normalize_actions``, ``units``, ``reward_type``, image size, cameras, render quality)
+may differ: restored into another ``control_mode``, that mode starts from its reset state
+(the ee modes' ``ik_error_*`` at 0) instead.
+
+``reset(options={"state": s})`` does not draw a new episode: it runs no task placement
+or randomisation and returns the restored state's observation and info (with
+``info["variation"]`` of the snapshot's episode, as a reset reports it). A ``seed`` given
+with it is applied and then overwritten by the snapshot's random state, which wins;
+``"state"`` cannot be combined with the task's own options (``ValueError``), and anything
+but a snapshot raises ``TypeError``. All checks run before anything changes. The step
+count continues from the snapshot's (the success reward uses it), but a ``TimeLimit``
+wrapper counts its steps from the restoring reset, so truncation by the step limit comes
+that many steps later than in the original episode.
 """
 
 from __future__ import annotations
@@ -26,10 +42,13 @@ from __future__ import annotations
 import copy
 import dataclasses
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
+
+if TYPE_CHECKING:
+    from gym_soarm.envs.world import World
 
 SNAPSHOT_VERSION = 2
 """The layout of :class:`Snapshot`; a snapshot of another layout is refused (2: a task
@@ -284,3 +303,74 @@ def check_snapshot(snapshot: Any, settings: Mapping[str, Any], what: str) -> Sna
             f"only into an environment with the same simulation settings: make it with {fix}."
         )
     return snapshot
+
+
+# --- a world's snapshots ---------------------------------------------------------------
+def check_restorable(snapshot: Any, world: World) -> Snapshot:
+    """``snapshot`` if it can be restored into ``world`` (see :func:`check_snapshot`;
+    also a ``ValueError`` when its model fields or physics state do not fit the model)."""
+    where = f"this {world.spec.name} environment"
+    snapshot = check_snapshot(snapshot, world.simulation_settings(), where)
+    m, d = world.physics.model.ptr, world.physics.data.ptr
+    check_model_fields(m, snapshot.model)
+    if len(snapshot.physics) != len(physics_state(m, d)):
+        raise ValueError(
+            "the snapshot's physics state does not fit this environment's model; "
+            "restore it into an environment made with the same settings."
+        )
+    return snapshot
+
+
+def save(
+    world: World, step_count: int, variation: dict[str, Any], rng: np.random.Generator
+) -> Snapshot:
+    """A snapshot of ``world`` in an episode at ``step_count`` whose reset drew
+    ``variation``, with the environment's random generator ``rng``."""
+    m, d = world.physics.model.ptr, world.physics.data.ptr
+    chain = world.chain
+    return Snapshot(
+        version=SNAPSHOT_VERSION,
+        settings=world.simulation_settings(),
+        physics=physics_state(m, d),
+        model=model_fields(m),
+        commanded=chain.commanded.copy(),
+        pending_targets=tuple(np.array(t, dtype=np.float64) for t in chain.pending),
+        delay_steps=int(chain.delay_steps),
+        servo=None if chain.servo is None else chain.servo.state,
+        control_mode=world.settings.control_mode,
+        control=control_state(world.control),
+        task_state=task_state(world.task),
+        step_count=int(step_count),
+        variation=copy.deepcopy(variation),
+        rng=copy.deepcopy(rng.bit_generator.state),
+    )
+
+
+def restore(world: World, snapshot: Snapshot) -> tuple[dict[str, Any], int, np.random.Generator]:
+    """Write ``snapshot`` (checked by :func:`check_restorable`) into ``world``: the model
+    fields, the physics, the servo chain, the control mode (its reset state when the
+    snapshot is of another mode) and the task.
+
+    Returns:
+        The environment's own part: a copy of the episode's variation, its step count and
+        a random generator in the snapshot's state.
+    """
+    m, d = world.physics.model.ptr, world.physics.data.ptr
+    set_model_fields(m, snapshot.model)
+    set_physics_state(m, d, snapshot.physics)
+    chain = world.chain
+    chain.delay_steps = snapshot.delay_steps
+    chain.pending = [np.array(t, dtype=np.float64) for t in snapshot.pending_targets]
+    if chain.servo is not None and snapshot.servo is not None:
+        chain.servo.state = snapshot.servo
+    if snapshot.control_mode == world.settings.control_mode:
+        set_control_state(world.control, snapshot.control)
+    else:
+        world.control.reset()
+    chain.commanded = np.array(snapshot.commanded, dtype=np.float64)
+    set_task_state(world.task, snapshot.task_state)
+    return (
+        copy.deepcopy(snapshot.variation),
+        snapshot.step_count,
+        generator_from_state(snapshot.rng),
+    )

@@ -20,6 +20,7 @@ import numpy as np
 
 from gym_soarm.expert import make_expert, run_episode
 from gym_soarm.rl.hyperparams import POLICY_CLASSES, TRAINERS
+from gym_soarm.rl.rsl_policy import RSL_LIBRARY, RSL_MODEL_FILE
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
 
@@ -101,8 +102,8 @@ def model_file(settings: Any) -> str:
 
     if isinstance(settings, dict) and settings.get("policy") == PIXEL_POLICY:
         return PIXEL_MODEL_FILE
-    if isinstance(settings, dict) and settings.get("library") == "rsl_rl":
-        return "model.pt"  # gym_soarm.rl.rsl.RSL_MODEL_FILE
+    if isinstance(settings, dict) and settings.get("library") == RSL_LIBRARY:
+        return RSL_MODEL_FILE
     return MODEL_FILE
 
 
@@ -146,7 +147,7 @@ class TrainedPolicy:
         self._normalizer = None
         self._pixels = None
         self._actor = None
-        if settings.get("library") == "rsl_rl":
+        if settings.get("library") == RSL_LIBRARY:
             self._actor = _rsl_actor(Path(folder), settings, obs_space.shape, action_space.shape)
             return
         if model_file(settings) != MODEL_FILE:
@@ -201,7 +202,7 @@ def _rsl_actor(folder: Path, settings: dict[str, Any], obs_shape: Any, action_sh
     import torch
     from tensordict import TensorDict
 
-    from gym_soarm.rl.rsl import OBS_GROUP, RSL_MODEL_FILE, load_actor
+    from gym_soarm.rl.rsl_policy import OBS_GROUP, RSL_MODEL_FILE, load_actor
 
     model = load_actor(folder / RSL_MODEL_FILE, settings["recipe"], obs_shape[0], action_shape[0])
 

@@ -58,7 +58,8 @@ from gym_soarm.rl.hyperparams import (
     recipe,
     rsl_recipe,
 )
-from gym_soarm.rl.rsl import RSL_LIBRARY, RSL_MODEL_FILE, RSL_VECTOR_ENVS
+from gym_soarm.rl.rsl import RSL_VECTOR_ENVS
+from gym_soarm.rl.rsl_policy import RSL_LIBRARY, RSL_MODEL_FILE
 from gym_soarm.rl.runs import RunFolder
 from gym_soarm.tasks import get_task
 from gym_soarm.tasks.suites import EVAL_SEED
@@ -478,7 +479,8 @@ def _train_rsl(
     device: str,
 ) -> TrainResult:
     """PPO with RSL-RL (see :func:`train`): the recipe checked, then the run."""
-    from gym_soarm.rl.rsl import require_rsl, train_rsl
+    from gym_soarm.rl.rsl import train_rsl
+    from gym_soarm.rl.rsl_policy import require_rsl
 
     settings = rsl_recipe(spec.name)
     settings["env"] = merge_keywords(settings["env"], spec.name, env)
