@@ -120,9 +120,9 @@ class SoArmEnv(gym.Env):
         settings: EnvSettings | None = None,
         **unknown: Any,
     ) -> None:
-        self._settings = resolve_settings(locals(), settings, unknown)
-        self.render_mode = self._settings.render_mode
-        self._world = world = World.build(self._settings)
+        settings = resolve_settings(locals(), settings, unknown)
+        self.render_mode = settings.render_mode
+        self._world = world = World.build(settings)  # the world owns the settings
         self.timing = world.timing
         # Videos, datasets and windows show one frame a control step.
         self.metadata = {**type(self).metadata, "render_fps": self.control_hz}
@@ -162,7 +162,7 @@ class SoArmEnv(gym.Env):
     def settings(self) -> EnvSettings:
         """Every keyword this environment was made with, checked and normalised (see
         :class:`gym_soarm.envs.settings.EnvSettings`); ``gym.make(id, settings=...)`` takes it."""
-        return self._settings
+        return self._world.settings
 
     # --- the world, as attributes (the objects it is made of) ---------------------------
     physics = _reads("_world.physics", "The dm_control physics (for experts, tests and tools).")

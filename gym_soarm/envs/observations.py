@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.envs.settings import STATE_OBS_TYPES
+from gym_soarm.envs.settings import STATE_OBS_TYPES, EnvSettings
 from gym_soarm.envs.world import World
 from gym_soarm.render.camera import CameraRenderer
 from gym_soarm.sim.arrays import SimArrays, item
@@ -30,14 +30,11 @@ class Observer:
     """
 
     def __init__(self, world: World) -> None:
-        s = world.settings
         self.world = world
-        self.obs_type = s.obs_type
+        s = world.settings
         self.cameras: tuple[str, ...] = s.camera_config if s.obs_type not in STATE_OBS_TYPES else ()
         """The cameras of pixel observations (none for state observations)."""
         self.size = (s.observation_height, s.observation_width)
-        self.quality = s.render_quality
-        self.modalities = s.image_modalities
         self.rgb, self.depth = "rgb" in s.image_modalities, "depth" in s.image_modalities
         self.segmentation = "segmentation" in s.image_modalities
         physics = world.physics
@@ -50,13 +47,18 @@ class Observer:
         self.last_obs: Any = None
         self.last_info: dict[str, Any] = {}
 
+    @property
+    def settings(self) -> EnvSettings:
+        """The environment's settings (its world's)."""
+        return self.world.settings
+
     # --- images ----------------------------------------------------------------------------
     def renderer(self, height: int, width: int) -> CameraRenderer:
         """The renderer of images of this size (created once, reused)."""
         renderer = self.renderers.get((height, width))
         if renderer is None:
             model = self.world.physics.model.ptr
-            renderer = CameraRenderer(model, width, height, self.quality)
+            renderer = CameraRenderer(model, width, height, self.settings.render_quality)
             self.renderers[(height, width)] = renderer
         return renderer
 
@@ -83,23 +85,23 @@ class Observer:
     # --- observations --------------------------------------------------------------------
     def observation(self, sim: SimArrays | None = None) -> Any:
         """The observation now (``sim``: this step's arrays of the simulation, if made)."""
-        world = self.world
-        if self.obs_type == "state":
+        world, obs_type = self.world, self.settings.obs_type
+        if obs_type == "state":
             sim = world.core.arrays() if sim is None else sim
             obs = world.core.state_observation(sim, world.chain.commanded)
-        elif self.obs_type == "environment_state_agent_pos":
+        elif obs_type == "environment_state_agent_pos":
             sim = world.core.arrays() if sim is None else sim
             obs = {
                 "agent_pos": world.units.from_radians(world.physics.joint_angles()),
                 "environment_state": world.core.environment_state(sim),
             }
-        elif self.modalities != ("rgb",):
+        elif self.settings.image_modalities != ("rgb",):
             obs = self._modality_observation()
         else:
             renderer = self.renderer(*self.size)
             data, ids = world.physics.data.ptr, self.camera_ids
             pixels = {name: renderer.render(data, ids[name]) for name in self.cameras}
-            if self.obs_type == "pixels":
+            if obs_type == "pixels":
                 obs = pixels
             else:
                 obs = {
@@ -123,7 +125,7 @@ class Observer:
                 if image is not None:
                     images[key][name] = image
         obs: dict[str, Any] = dict(images)
-        if self.obs_type == "pixels_agent_pos":
+        if self.settings.obs_type == "pixels_agent_pos":
             obs["agent_pos"] = self.world.units.from_radians(self.world.physics.joint_angles())
         return obs
 

@@ -512,8 +512,10 @@ def setting_property(name: str, *, settable: bool = False) -> property:
     its ``settings``.
 
     ``settable``: assigning it (``env.reward_type = "sparse"``, a vector env's
-    ``set_attr``) replaces the environment's settings (its ``_settings``) by a copy with
-    the new value, checked; else assigning raises ``AttributeError``.
+    ``set_attr``) replaces the environment's settings (its world's, ``env._world.settings``,
+    which holds them) by a copy with the new value, checked; else assigning raises
+    ``AttributeError``. Only fields that the environment reads anew each time may be
+    settable: the world is built once.
     """
 
     def get(env: Any) -> Any:
@@ -525,7 +527,7 @@ def setting_property(name: str, *, settable: bool = False) -> property:
                 f"{name} is fixed when the environment is made; make another one with "
                 f"gym.make(..., {name}=...) (or settings=env.unwrapped.settings.replace(...))."
             )
-        env._settings = env.settings.replace(**{name: value})
+        env._world.settings = env.settings.replace(**{name: value})
 
     (item,) = (item for item in setting_fields() if item.name == name)
     return property(get, set_, doc=f"The ``{name}`` setting: {item.metadata['doc']}.")

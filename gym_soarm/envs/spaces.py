@@ -43,7 +43,7 @@ from gym_soarm.envs.observations import Observer
 def observation_space(observer: Observer) -> spaces.Space:
     """The space of ``observer``'s observations."""
     world = observer.world
-    obs_type, cameras = observer.obs_type, observer.cameras
+    obs_type, cameras = observer.settings.obs_type, observer.cameras
     image = spaces.Box(0, 255, (*observer.size, 3), dtype=np.uint8)
     # Joint limits never come near +-pi rad (wrist_roll's range is the widest).
     n_joints = len(constants.JOINT_NAMES)
@@ -53,7 +53,7 @@ def observation_space(observer: Observer) -> spaces.Space:
     )
     # OrderedDict keeps our key order; Gymnasium sorts the keys of a plain dict.
     pixels = spaces.Dict(OrderedDict((name, image) for name in cameras))
-    if obs_type == "pixels" and observer.modalities == ("rgb",):
+    if obs_type == "pixels" and observer.settings.image_modalities == ("rgb",):
         return pixels
     if obs_type in ("pixels", "pixels_agent_pos"):
         layout: OrderedDict[str, spaces.Space] = OrderedDict()

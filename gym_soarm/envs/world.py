@@ -38,6 +38,8 @@ class World:
     """The simulation of one environment and the objects that act on it."""
 
     settings: EnvSettings
+    """The environment's settings, held here once (the env's ``settings``); a settable
+    field (:func:`~gym_soarm.envs.settings.setting_property`) replaces them."""
     spec: TaskSpec
     """The registered declaration of the task."""
     task: Task
@@ -79,9 +81,8 @@ class World:
             apply_dynamics(physics.model.ptr, fitted.joints)
         # A fitted delay is counted in steps of the rate fits run at (the default): the
         # same time at this rate.
-        delay = (
-            0 if fitted is None else round(fitted.delay_steps * s.control_hz / DEFAULT_CONTROL_HZ)
-        )
+        hz = timing.control_hz
+        delay = 0 if fitted is None else round(fitted.delay_steps * hz / DEFAULT_CONTROL_HZ)
         randomized = s.visual_randomization != "none" or s.physics_randomization != "none"
         randomizer = Randomizer(physics) if randomized else None
         # The control mode turns an action into servo targets (clipped in radians).
@@ -93,9 +94,20 @@ class World:
             hook = lambda targets: task.before_step(targets, physics)  # noqa: E731
         core = StepCore(task, MjDataBackend(physics), None, hook, timing.substeps)
         return cls(
-            s, spec, task, physics, label, task.placement, timing, units, control, chain, core,
-            randomizer, delay,
-        )  # fmt: skip
+            settings=s,
+            spec=spec,
+            task=task,
+            physics=physics,
+            scene_label=label,
+            placement=task.placement,
+            timing=timing,
+            units=units,
+            control=control,
+            chain=chain,
+            core=core,
+            randomizer=randomizer,
+            fitted_delay_steps=delay,
+        )
 
     # --- episodes ------------------------------------------------------------------------
     @property
