@@ -49,7 +49,7 @@ def bc_reach(tmp_path_factory) -> Path:
         "--eval-episodes", "2", "--out", str(out), "--hyperparams", *hyperparams,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
-    assert "done:" in done.stdout and "success on the protocol" in done.stdout
+    assert "done:" in done.stdout and "success on the validation episodes" in done.stdout
     return out
 
 

@@ -245,8 +245,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise SystemExit(f"python -m gym_soarm.train: error: {exc}") from None
     rate = "n/a" if result.success_rate is None else f"{100 * result.success_rate:.0f} %"
     state = "interrupted" if result.interrupted else "done"
+    # Imitation runs choose their best round on validation episodes, not the protocol's.
+    scored = "the validation episodes" if args.algo in IMITATION else "the protocol"
     print(
-        f"{state}: {result.env_steps} steps in {result.wall_s:.0f} s; success on the "
-        f"protocol {rate}; checkpoint and curve in {result.out}"
+        f"{state}: {result.env_steps} steps in {result.wall_s:.0f} s; success on "
+        f"{scored} {rate}; checkpoint and curve in {result.out}"
     )
     return 130 if result.interrupted else 0

@@ -289,7 +289,7 @@ def train_imitation(
         task: a registered task (its name, alias or id).
         out: the output folder (created; files of an earlier run there are replaced).
         seed: the training seed (the network, the noise, the training resets).
-        eval_episodes: protocol episodes per evaluation (default: the recipe's).
+        eval_episodes: validation episodes (seeds 50000 + k) per evaluation (default: the recipe's).
         hyperparams: values that replace the recipe's ``algo`` keys (``{"demos": 20}``).
         env: ``gym.make`` keywords over the recipe's environment (see
             :func:`gym_soarm.rl.training.train`).
