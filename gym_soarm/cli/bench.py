@@ -84,13 +84,8 @@ def env_changes(args: argparse.Namespace) -> dict[str, Any]:
     return settings_given(args)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The program's command line."""
-    parser = argparse.ArgumentParser(
-        prog=program_name("bench"),
-        description="Measure env steps/s, make/reset time and memory against MuJoCo's own "
-        "ceiling (bare mj_step, bare mujoco.Renderer) on this machine.",
-    )
+def _add_measurement_arguments(parser: argparse.ArgumentParser) -> None:
+    """What one env's measurements run: configurations, durations, task and control mode."""
     parser.add_argument(
         "--configs",
         default=",".join(bench.DEFAULT_CONFIGS),
@@ -134,6 +129,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="the control mode to measure, with random actions of its own action space: "
         "joint_pos, joint_delta, ee_delta or ee_pose (default: %(default)s)",
     )
+
+
+def _add_vector_arguments(parser: argparse.ArgumentParser) -> None:
+    """The vector envs' scaling: how many environments, which observations and envs."""
     parser.add_argument(
         "--vector-scaling",
         default="",
@@ -160,6 +159,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="image size of the cameras of --vector-obs and --recording-cameras "
         "(default: %(default)s)",
     )
+
+
+def _add_recording_arguments(parser: argparse.ArgumentParser) -> None:
+    """The recording's throughput: workers, Ray, episodes and cameras."""
     parser.add_argument(
         "--recording",
         type=int,
@@ -183,6 +186,18 @@ def build_parser() -> argparse.ArgumentParser:
         default="none,front_wrist",
         help="camera configs recorded, 'none' for state only (default: %(default)s)",
     )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The program's command line."""
+    parser = argparse.ArgumentParser(
+        prog=program_name("bench"),
+        description="Measure env steps/s, make/reset time and memory against MuJoCo's own "
+        "ceiling (bare mj_step, bare mujoco.Renderer) on this machine.",
+    )
+    _add_measurement_arguments(parser)
+    _add_vector_arguments(parser)
+    _add_recording_arguments(parser)
     add_settings_arguments(
         parser,
         exclude=BENCH_EXCLUDES,

@@ -51,11 +51,8 @@ def env_settings(args: argparse.Namespace) -> EnvSettings:
     return settings_from_args(args, task=first)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog=program_name("record"),
-        description="Record scripted-expert demonstrations of gym_soarm as a LeRobotDataset v3.0.",
-    )
+def _add_dataset_arguments(parser: argparse.ArgumentParser) -> None:
+    """What is recorded and where: tasks, episodes, seed, dataset, cameras and image size."""
     parser.add_argument(
         "--task",
         type=task_selection,
@@ -85,12 +82,10 @@ def build_parser() -> argparse.ArgumentParser:
         "'none' records observation.environment_state and no video (default front_wrist)",
     )
     parser.add_argument("--size", default="480x640", help="image HEIGHTxWIDTH (default 480x640)")
-    add_settings_arguments(
-        parser,
-        exclude=RECORD_EXCLUDES,
-        defaults={"units": "lerobot"},
-        description="gym.make keywords of every attempt's environment (see docs/keywords.md)",
-    )
+
+
+def _add_attempt_arguments(parser: argparse.ArgumentParser) -> None:
+    """How the attempts run: which are kept, the noise, and where they run."""
     parser.add_argument(
         "--keep",
         choices=KEEP_CHOICES,
@@ -125,6 +120,21 @@ def build_parser() -> argparse.ArgumentParser:
         "one), or on a new local cluster without ADDRESS; needs pip install 'gym-soarm[ray]'",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=program_name("record"),
+        description="Record scripted-expert demonstrations of gym_soarm as a LeRobotDataset v3.0.",
+    )
+    _add_dataset_arguments(parser)
+    add_settings_arguments(
+        parser,
+        exclude=RECORD_EXCLUDES,
+        defaults={"units": "lerobot"},
+        description="gym.make keywords of every attempt's environment (see docs/keywords.md)",
+    )
+    _add_attempt_arguments(parser)
     return parser
 
 

@@ -66,21 +66,8 @@ def _key_map_text() -> str:
     return "\n".join(f"  {keys:<{width}}  {what}" for keys, what in KEY_HELP)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog=program_name("teleop"),
-        description="Drive the SO-101's jaw centre in the robot's base frame from the keyboard "
-        "(or a gamepad) in a window that shows the cameras, and record the episodes as a "
-        "LeRobotDataset v3.0 (with --root or --repo-id; without them it only drives). The "
-        "simulation waits for the first key of each episode, then runs in real time (50 Hz, "
-        "or as fast as rendering allows: the default 240x320 images keep it quick).",
-        epilog="keys (with the window focused):\n" + _key_map_text() + "\n\nAn episode ends "
-        "when you save it, when the task succeeds, or at --max-steps; a recording saves it "
-        "then (--keep success: only if the task succeeded). Each saved episode holds its "
-        "instruction and next.success per frame; Ctrl-C, Esc/Q and closing the window keep "
-        "every saved episode.",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+def _add_dataset_arguments(parser: argparse.ArgumentParser) -> None:
+    """The task, the episodes and the dataset they are recorded into."""
     parser.add_argument(
         "--task",
         type=task_name,
@@ -130,6 +117,10 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help=f"an episode ends after N steps (default {DEFAULT_MAX_STEPS}: 30 s)",
     )
+
+
+def _add_driving_arguments(parser: argparse.ArgumentParser) -> None:
+    """How the jaws move: the speeds of the keys, the gamepad and the render quality."""
     parser.add_argument(
         "--speed",
         type=float,
@@ -162,6 +153,25 @@ def build_parser() -> argparse.ArgumentParser:
         default="fast",
         help="render quality (default fast)",
     )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=program_name("teleop"),
+        description="Drive the SO-101's jaw centre in the robot's base frame from the keyboard "
+        "(or a gamepad) in a window that shows the cameras, and record the episodes as a "
+        "LeRobotDataset v3.0 (with --root or --repo-id; without them it only drives). The "
+        "simulation waits for the first key of each episode, then runs in real time (50 Hz, "
+        "or as fast as rendering allows: the default 240x320 images keep it quick).",
+        epilog="keys (with the window focused):\n" + _key_map_text() + "\n\nAn episode ends "
+        "when you save it, when the task succeeds, or at --max-steps; a recording saves it "
+        "then (--keep success: only if the task succeeded). Each saved episode holds its "
+        "instruction and next.success per frame; Ctrl-C, Esc/Q and closing the window keep "
+        "every saved episode.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    _add_dataset_arguments(parser)
+    _add_driving_arguments(parser)
     add_settings_arguments(
         parser,
         exclude=TELEOP_EXCLUDES,
@@ -190,31 +200,90 @@ def env_settings(args: argparse.Namespace) -> EnvSettings:
     return settings_from_args(args, **fixed)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command-line entry point; returns the process exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+def _check_arguments(
+    parser: argparse.ArgumentParser, args: argparse.Namespace
+) -> tuple[EnvSettings, tuple[str, ...]]:
+    """The environment settings and the cameras shown and recorded (a usage error if the
+    flags are not valid)."""
     camera_config = camera_config_argument(args.camera_config)
-    state_only = camera_config == CAMERA_CONFIG_NONE
-    recording = args.root is not None or args.repo_id is not None
-    repo_id = args.repo_id or DEFAULT_REPO_ID
     try:
-        spec = get_task(args.task)
-        height, width = parse_size(args.size)
-        cameras = () if state_only else resolve_camera_config(camera_config)
-        episodes = check_int("--episodes", args.episodes, 1)
-        max_steps = check_int("--max-steps", args.max_steps, 1)
+        get_task(args.task)
+        parse_size(args.size)
+        cameras = (
+            () if camera_config == CAMERA_CONFIG_NONE else resolve_camera_config(camera_config)
+        )
+        check_int("--episodes", args.episodes, 1)
+        check_int("--max-steps", args.max_steps, 1)
         check_int("--seed", args.seed, 0)
         settings = env_settings(args)
     except (ValueError, TypeError) as exc:
         parser.error(str(exc))
+    return settings, tuple(cameras)
+
+
+def _speeds(
+    parser: argparse.ArgumentParser, args: argparse.Namespace, control_hz: int
+) -> TeleopSpeeds:
+    """The keys' speeds of ``--speed`` and ``--turn-speed`` (checked: a usage error if not)."""
     for flag, value, limit, unit in (
         ("--speed", args.speed, MAX_SPEED_M_S, "m/s"),
         ("--turn-speed", args.turn_speed, MAX_TURN_SPEED_RAD_S, "rad/s"),
     ):
         if not 0.0 < value <= limit:
             parser.error(f"{flag} must be above 0 and at most {limit:g} {unit}; got {value}.")
-    speeds = TeleopSpeeds(args.speed, args.turn_speed, 1.0 / settings.control_hz)
+    return TeleopSpeeds(args.speed, args.turn_speed, 1.0 / control_hz)
+
+
+def _open_gamepad(parser: argparse.ArgumentParser, index: int | None) -> Gamepad | None:
+    """The gamepad of ``--gamepad`` (None without it); RuntimeError if it failed to open."""
+    if index is None:
+        return None
+    try:
+        gamepad = Gamepad(index)
+    except ValueError as exc:  # refused input: argparse's usage error, exit 2
+        parser.error(f"--gamepad: {exc}")
+    print(f"gamepad {gamepad.name!r}", flush=True)
+    return gamepad
+
+
+def _create_writer(
+    parser: argparse.ArgumentParser,
+    args: argparse.Namespace,
+    env: gym.Env,
+    root: Path,
+    settings: EnvSettings,
+    cameras: Sequence[str],
+) -> LeRobotDatasetWriter:
+    """The dataset the session saves its episodes into, with the recording's settings."""
+    height, width = settings.observation_height, settings.observation_width
+    state_only = settings.obs_type == "environment_state_agent_pos"
+    state_names = env.unwrapped.state_names if state_only else None
+    features = dataset_features(cameras, height, width, state_names, settings.control_mode)
+    robot_type = robot_type_for(settings.units)
+    try:
+        writer = LeRobotDatasetWriter.create(
+            root,
+            settings.control_hz,
+            features,
+            robot_type=robot_type,
+            overwrite=args.overwrite,
+        )
+    except (ValueError, FileExistsError, ImportError) as exc:
+        parser.error(str(exc))
+    write_recording_settings(root, settings)
+    print(f"recording into {root}", flush=True)
+    return writer
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point; returns the process exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    settings, cameras = _check_arguments(parser, args)
+    state_only = settings.obs_type == "environment_state_agent_pos"
+    recording = args.root is not None or args.repo_id is not None
+    repo_id = args.repo_id or DEFAULT_REPO_ID
+    speeds = _speeds(parser, args, settings.control_hz)
     if args.gamepad is not None:
         try:
             import_pygame()
@@ -224,47 +293,30 @@ def main(argv: Sequence[str] | None = None) -> int:
     if problem is not None:
         print(problem, file=sys.stderr)
         return 1
-    gamepad = None
-    if args.gamepad is not None:
-        try:
-            gamepad = Gamepad(args.gamepad)
-        except ValueError as exc:  # refused input: argparse's usage error, exit 2
-            parser.error(f"--gamepad: {exc}")
-        except RuntimeError as exc:  # the device failed to open
-            print(f"--gamepad: {exc}", file=sys.stderr)
-            return 1
-        print(f"gamepad {gamepad.name!r}", flush=True)
+    try:
+        gamepad = _open_gamepad(parser, args.gamepad)
+    except RuntimeError as exc:  # the device failed to open
+        print(f"--gamepad: {exc}", file=sys.stderr)
+        return 1
 
     writer = None
     root = Path(args.root) if args.root else default_root(repo_id)
     try:
-        env = gym.make(spec.env_id, max_episode_steps=max_steps, settings=settings)
+        env = gym.make(
+            get_task(args.task).env_id, max_episode_steps=args.max_steps, settings=settings
+        )
     except (ValueError, TypeError) as exc:
         if gamepad is not None:
             gamepad.close()
         parser.error(str(exc))
     try:
         if recording:
-            state_names = env.unwrapped.state_names if state_only else None
-            features = dataset_features(cameras, height, width, state_names, settings.control_mode)
-            robot_type = robot_type_for(settings.units)
-            try:
-                writer = LeRobotDatasetWriter.create(
-                    root,
-                    settings.control_hz,
-                    features,
-                    robot_type=robot_type,
-                    overwrite=args.overwrite,
-                )
-            except (ValueError, FileExistsError, ImportError) as exc:
-                parser.error(str(exc))
-            write_recording_settings(root, settings)
-            print(f"recording into {root}", flush=True)
+            writer = _create_writer(parser, args, env, root, settings, cameras)
         session = TeleopSession(
             env,
             writer,
             cameras=SHOWN_WITHOUT_CAMERAS if state_only else cameras,
-            episodes=episodes,
+            episodes=args.episodes,
             seed=args.seed,
             keep=args.keep,
             speeds=speeds,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -35,8 +36,15 @@ OBS_TYPES: tuple[str, ...] = ("pixels_agent_pos", "environment_state_agent_pos",
 LEROBOT_BUILDS_SUITES = hasattr(EnvConfig, "create_envs")
 """Whether this LeRobot's ``make_env`` asks the config for its envs (LeRobot >= 0.6); older
 ones make ``gym_id`` alone, so they can evaluate one task without a suite's settings."""
-VECTOR_ENVS: tuple[str, ...] = ("auto", "native", "async", "sync")
+PACKAGE_VECTOR_ENVS: tuple[str, ...] = ("batched", "processes", "warp")
+"""gym_soarm's own vector envs, by the names of ``gym.make_vec``'s ``vector_env`` (see
+:func:`gym_soarm.vector.make_vector_env`) and the trainer's ``--vector-env``."""
+VECTOR_ENVS: tuple[str, ...] = ("auto", *PACKAGE_VECTOR_ENVS, "async", "sync")
 """Values of ``vector_env``: how ``create_envs`` batches ``n_envs`` environments."""
+DEPRECATED_VECTOR_ENVS: tuple[str, ...] = ("native",)
+"""Earlier values of ``vector_env``, still taken with a ``FutureWarning``: ``"native"``,
+gym_soarm's vector env picked as ``"auto"`` picks it for several environments (now
+``"batched"`` or ``"processes"``)."""
 
 
 def check_task(task: object) -> str:
@@ -109,14 +117,17 @@ class SoArmEnvConfig(EnvConfig):
         control_mode: what the policy's action means: ``"joint_pos"``,
             ``"joint_delta"``, ``"ee_delta"`` or ``"ee_pose"`` (see
             :mod:`gym_soarm.envs.control`); six values in every mode.
-        vector_env: how ``create_envs`` batches ``n_envs`` environments: ``"native"``
-            (gym_soarm's vector env on worker processes,
-            :class:`gym_soarm.vector.SoArmVectorEnv`), ``"async"`` (Gymnasium's
-            ``AsyncVectorEnv``, one process per environment), ``"sync"``
-            (``SyncVectorEnv``), or ``"auto"`` (default): native for several
-            environments (docs/performance.md, "Vector envs and recording at scale": the fastest with
-            state observations, level with async with a camera, on two cores), sync for
-            one.
+        vector_env: how ``create_envs`` batches ``n_envs`` environments: one of
+            gym_soarm's vector envs, by the names ``gym.make_vec`` and the trainer's
+            ``--vector-env`` give them: ``"batched"`` (one ``mujoco.batch``, state
+            observations), ``"processes"`` (worker processes,
+            :class:`gym_soarm.vector.SoArmVectorEnv`) or ``"warp"`` (MuJoCo Warp on a
+            GPU); or Gymnasium's ``"async"`` (``AsyncVectorEnv``, one process per
+            environment) or ``"sync"`` (``SyncVectorEnv``); or ``"auto"`` (default):
+            for several environments batched with state observations and processes
+            with cameras (docs/performance.md, "Vector envs and recording at scale": the
+            fastest on two cores), sync for one. ``"native"``, the earlier name of
+            batched or processes as auto picks them, is deprecated (a ``FutureWarning``).
         calibration: with LeRobot units, the path of a real SO-101 follower's
             calibration JSON, so the env speaks that arm's values (see
             :mod:`gym_soarm.real.calibration`); None for the fixed maps.
@@ -178,7 +189,10 @@ class SoArmEnvConfig(EnvConfig):
         self.distractors = check_int("distractors", self.distractors, 0, MAX_DISTRACTORS)
         self.fps = check_control_hz("fps", self.fps)
         check_choice("control_mode", self.control_mode, CONTROL_MODES)
-        check_choice("vector_env", self.vector_env, VECTOR_ENVS)
+        if self.vector_env in DEPRECATED_VECTOR_ENVS:
+            warnings.warn(self._native_warning(selected), FutureWarning, stacklevel=3)
+        else:
+            check_choice("vector_env", self.vector_env, VECTOR_ENVS)
         if self.calibration is not None:  # reads and checks the file
             joint_units(self.units, self.wrist_roll_offset_deg, self.calibration)
         if self.dynamics is not None:  # reads and checks the file
@@ -250,10 +264,10 @@ class SoArmEnvConfig(EnvConfig):
         """``{group: {task_index: VectorEnv}}`` of ``n_envs`` environments per selected task.
 
         With ``vector_env="auto"``: one environment is a ``SyncVectorEnv``; several
-        step in gym_soarm's native vector env, one process per CPU, whatever
-        ``use_async_envs`` says: on two cores it measured the fastest with state
-        observations, and level with ``AsyncVectorEnv`` with a camera while starting
-        two processes instead of one per environment.
+        step in gym_soarm's vector env, whatever ``use_async_envs`` says: the batched
+        env with state observations (the fastest on two cores), worker processes, one
+        per CPU, with cameras (level with ``AsyncVectorEnv`` while starting two
+        processes instead of one per environment).
         """
         n_envs = check_int("n_envs", n_envs, 1)
         envs: dict[str, dict[int, gym.vector.VectorEnv]] = {}
@@ -273,18 +287,39 @@ class SoArmEnvConfig(EnvConfig):
         """The ``gym.make`` keywords of one selected task: the fields, then its suite's."""
         return {**self.gym_kwargs, **item.variation}
 
+    def package_vector_env(self, item: SelectedTask) -> str:
+        """The vector env of gym_soarm that ``"auto"`` picks for several environments of
+        one selected task: ``"batched"`` with state observations, else ``"processes"``."""
+        from gym_soarm.vector.batched import wants_batched
+
+        kwargs = {"task": item.task, **self.task_kwargs(item)}
+        return "batched" if wants_batched(kwargs) else "processes"
+
+    def _native_warning(self, selected: tuple[SelectedTask, ...]) -> str:
+        picks = sorted({self.package_vector_env(item) for item in selected})
+        new = " or ".join(f"vector_env={pick!r}" for pick in picks)
+        return (
+            f"vector_env='native' is deprecated; pass {new}: gym_soarm's vector envs go by "
+            f"the names gym.make_vec's vector_env and the trainer's --vector-env give them "
+            f"({', '.join(PACKAGE_VECTOR_ENVS)}). 'native' still picks batched for state "
+            "observations and processes with cameras."
+        )
+
     def _vector_env(self, item: SelectedTask, n_envs: int) -> gym.vector.VectorEnv:
         env_id = get_task(item.task).env_id
         kwargs = self.task_kwargs(item)
         mode = self.vector_env
         if mode == "auto":
             mode = "sync" if n_envs == 1 else "native"
-        if mode == "native":
+        if mode == "native":  # gym_soarm's vector env, as its own "auto" picks it
+            mode = self.package_vector_env(item)
+        if mode in PACKAGE_VECTOR_ENVS:
             return gym.make_vec(
                 env_id,
                 num_envs=n_envs,
                 vectorization_mode="vector_entry_point",
                 autoreset_mode=gym.vector.AutoresetMode.SAME_STEP,
+                vector_env=mode,
                 **kwargs,
             )
         # A module-level function, so that worker processes import gym_soarm (and its ids).
