@@ -240,6 +240,7 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "aux_input": True,
                 "lr_schedule": "cosine",
                 "episode_weighting": True,
+                "round_learning_rate": None,
                 "rounds": 8,
                 "patience": 3,
                 "episodes_per_round": 20,
@@ -258,8 +259,12 @@ images by this factor before the encoder: cheaper convolutions), ``shift_px`` (r
 augmentation, in pixels of the stored image), ``max_memory_gb`` (the bound on the
 stored frames), ``aux_weight`` (the weight of the auxiliary targets' loss: what the state
 expert reads, predicted from the images; 0 turns them off), ``aux_input`` (their estimate
-also feeds the action's MLP) and, for DAgger, ``patience`` (the rounds stop once this many
-in a row fail to beat the best evaluation)."""
+also feeds the action's MLP), ``lr_schedule`` (``"constant"`` or ``"cosine"``: each fit
+anneals the rate to a hundredth of ``learning_rate``) and, for DAgger,
+``episode_weighting`` (each step's loss weighted so that every episode counts alike),
+``round_learning_rate`` (the rounds' fits start from this rate instead of
+``learning_rate``; None: the same) and ``patience`` (the rounds stop once this many in a
+row fail to beat the best evaluation)."""
 
 
 def pixel_recipe(algo: str, task: str) -> dict[str, Any]:

@@ -62,12 +62,17 @@ def episode_weights(episodes: np.ndarray, params: dict[str, Any]) -> np.ndarray:
     return (weights / weights.mean()).astype(np.float32)
 
 
-def learning_rates(params: dict[str, Any], epochs: int, steps_per_epoch: int) -> Any:
+def learning_rates(
+    params: dict[str, Any], epochs: int, steps_per_epoch: int, first: bool = True
+) -> Any:
     """The learning rate of each optimiser step of a fit, ``rate(epoch, step)``: the
-    recipe's ``learning_rate`` throughout, or with ``lr_schedule="cosine"`` annealed along
-    a half cosine to a hundredth of it by the fit's last step (each fit, each DAgger round,
-    starts again from the full rate)."""
+    recipe's ``learning_rate`` throughout (``round_learning_rate`` in the DAgger rounds'
+    fits after the ``first``, where the recipe has one), or with ``lr_schedule="cosine"``
+    annealed along a half cosine to a hundredth of it by the fit's last step (each fit,
+    each DAgger round, starts again from its full rate)."""
     base, schedule = params["learning_rate"], params.get("lr_schedule", "constant")
+    if not first and params.get("round_learning_rate") is not None:
+        base = params["round_learning_rate"]
     if schedule == "constant":
         return lambda epoch, step: base
     if schedule != "cosine":
@@ -116,6 +121,7 @@ class PixelTrainer(ImitationTrainer):
         self.optimizer: Any = None
         self.mean = self.std = self.aux_mean = self.aux_std = None
         self._pooled: dict[str, Any] = {}
+        self.fits = 0
         self.generator = torch.Generator().manual_seed(seed)
         kind = "BC" if algo == "bc" else "DAgger"
         self.title = f"{kind} from pixels on {spec.name}, seed {seed}"
@@ -233,7 +239,8 @@ class PixelTrainer(ImitationTrainer):
         aux = torch.as_tensor((store.aux[:n] - self.aux_mean) / self.aux_std, device=device)
         weight = torch.as_tensor(episode_weights(store.episode[:n], params), device=device)
         batch = params["batch_size"]
-        schedule = learning_rates(params, epochs, -(-n // batch))
+        schedule = learning_rates(params, epochs, -(-n // batch), first=self.fits == 0)
+        self.fits += 1
         self.net.train()
         loss_value, began = float("nan"), time.perf_counter()
         for epoch in range(epochs):

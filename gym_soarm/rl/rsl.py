@@ -202,7 +202,7 @@ class RslTrainer:
         """Train for ``steps`` environment steps, evaluating every ``eval_every``."""
         while self.env_steps < steps and not self.folder.stop():
             chunk = min(eval_every, steps - self.env_steps)
-            iterations = max(1, round(chunk / self.steps_per_iteration))
+            iterations = -(-chunk // self.steps_per_iteration)  # whole iterations, rounded up
             self.runner.learn(iterations)
             self.runner.current_learning_iteration += 1
             self.env_steps += iterations * self.steps_per_iteration
