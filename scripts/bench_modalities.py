@@ -47,7 +47,7 @@ def main() -> None:
     for _ in range(args.repeats):
         for modalities, env in envs.items():
             start = time.perf_counter()
-            env.unwrapped._observation()
+            env.unwrapped.observation()
             times[modalities].append((time.perf_counter() - start) * 1e3)
     for modalities, env in envs.items():
         env.close()

@@ -65,7 +65,7 @@ def keywords_page() -> str:
         "`gym_soarm.envs.settings.EnvSettings` that checks it (see [settings.md](settings.md)). "
         "`env.unwrapped.settings` holds an environment's; the programs' flags are the "
         "keywords' names with dashes (`dynamics` -> `--dynamics`). "
-        "The class docstring of `gym_soarm.envs.env.SoArmEnv` tells more of each.\n\n"
+        "The docstring of `gym_soarm.envs.settings.EnvSettings` tells more of each.\n\n"
         + keyword_table()
     )
 

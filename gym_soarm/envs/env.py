@@ -329,7 +329,6 @@ class SoArmEnv(gym.Env):
         """The observation of the current state (pixel observations render now)."""
         return self._observer.observation()
 
-    _observation = observation  # the name scripts/bench_modalities.py calls
 
     @property
     def commanded_targets(self) -> np.ndarray:
