@@ -356,7 +356,7 @@ RSL_HYPERPARAMS: dict[str, dict[str, Any]] = {
             "init_noise_std": 1.0,
         },
     },
-    REACH: {"steps": 1_000_000, "eval_every": 50_000},
+    REACH: {"steps": 2_400_000, "eval_every": 50_000},
     LIFT: {"steps": 6_000_000, "eval_every": 250_000},
 }
 """PPO on RSL-RL (``--vector-env batched|warp``): ``num_envs`` environments on the CPU
