@@ -13,6 +13,18 @@ or relative. Two kinds of edge are left out: imports under ``if TYPE_CHECKING:``
 never run, and the parent packages' ``__init__`` that importing a module also runs
 (every submodule would otherwise be in a cycle with ``gym_soarm/__init__.py``, which
 imports the environment).
+
+Budgets (SPEC 29). The goal: at most 5 functions over 60 code lines (the function's
+lines but its docstrings, comments and blank lines, counted with :mod:`ast`) and none
+over 100; at most 2 modules over 600 lines; at most 40 pairs that the ``duplicates``
+tool lists over ``gym_soarm/``. The tree is not there yet, so the functions and modules
+over budget today are allowlisted with their size (``LONG_FUNCTIONS``,
+``LONG_MODULES``): an allowlist may only shrink. A new offender fails, an allowlisted
+one that grows fails, and one that is within budget again fails until it is taken off
+the list. The goals themselves are tests marked ``xfail(strict=True)``, which fail as
+``XPASS`` once reached (then remove the mark). ``duplicates`` is a tool of the
+workplace, not a pip package, so no test runs it: docs/architecture.md ("Budgets")
+keeps its latest count.
 """
 
 from __future__ import annotations
@@ -277,13 +289,8 @@ LONG_FUNCTIONS: dict[str, int] = {
     "gym_soarm/cli/train.py:main": 75,
     "gym_soarm/data/writer.py:LeRobotDatasetWriter._write_metadata": 67,
     "gym_soarm/data/writer.py:LeRobotDatasetWriter.save_episode": 79,
-    "gym_soarm/real/calibration.py:load_calibration": 67,
-    "gym_soarm/real/dynamics.py:check_dynamics": 74,
-    "gym_soarm/real/replay.py:read_replay_dataset": 104,
     "gym_soarm/real/sysid.py:fit_dynamics": 129,
-    "gym_soarm/record/parallel.py:record_in_workers": 129,
-    "gym_soarm/record/ray_tasks.py:record_with_ray": 63,
-    "gym_soarm/record/record.py:record": 149,
+    "gym_soarm/record/record.py:record": 78,
     "gym_soarm/rl/imitation.py:bc_regularized_ppo_class": 83,
     "gym_soarm/rl/pixels.py:build_network": 64,
     "gym_soarm/rl/training.py:train": 72,
@@ -297,7 +304,6 @@ lines, the most they may have."""
 LONG_MODULES: dict[str, int] = {
     "gym_soarm/data/writer.py": 735,
     "gym_soarm/envs/control.py": 678,
-    "gym_soarm/real/replay.py": 673,
     "gym_soarm/real/sysid.py": 638,
     "gym_soarm/rl/imitation.py": 613,
     "gym_soarm/vector/processes.py": 645,

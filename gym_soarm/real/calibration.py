@@ -80,6 +80,7 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -167,6 +168,44 @@ def _refuse(path: object, problem: str) -> ValueError:
     )
 
 
+def _motor(path: str | os.PathLike[str], name: str, entry: Any) -> MotorCalibration:
+    """One motor's entry of a calibration file (checked)."""
+    if not isinstance(entry, dict):
+        raise _refuse(path, f"motor {name!r} is a {type(entry).__name__}, not an object")
+    extra = sorted(set(entry) - set(FIELDS))
+    if extra:
+        raise _refuse(
+            path,
+            f"motor {name!r} has an unknown field {extra[0]!r}; expected {', '.join(FIELDS)}",
+        )
+    values: dict[str, int] = {}
+    for field in FIELDS:
+        if field not in entry:
+            raise _refuse(path, f"motor {name!r} has no {field!r}")
+        value = entry[field]
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise _refuse(path, f"motor {name!r} field {field!r} must be an integer; got {value!r}")
+        values[field] = value
+    if values["drive_mode"] not in (0, 1):
+        raise _refuse(
+            path,
+            f"motor {name!r} field 'drive_mode' must be 0 or 1; got {values['drive_mode']!r}",
+        )
+    for field in ("range_min", "range_max"):
+        if not 0 <= values[field] <= MAX_TICKS:
+            raise _refuse(
+                path,
+                f"motor {name!r} field {field!r} must be 0 to {MAX_TICKS} ticks; got {values[field]!r}",
+            )
+    if values["range_min"] >= values["range_max"]:
+        raise _refuse(
+            path,
+            f"motor {name!r} has range_min {values['range_min']} >= range_max "
+            f"{values['range_max']}; the lowest reading must come first",
+        )
+    return MotorCalibration(**values)
+
+
 def load_calibration(path: str | os.PathLike[str]) -> Calibration:
     """Read and check a LeRobot SO-101 follower calibration file.
 
@@ -209,43 +248,7 @@ def load_calibration(path: str | os.PathLike[str]) -> Calibration:
             raise _refuse(
                 path, f"motor {name!r} is missing; every one of {', '.join(names)} is needed"
             )
-        entry = content[name]
-        if not isinstance(entry, dict):
-            raise _refuse(path, f"motor {name!r} is a {type(entry).__name__}, not an object")
-        extra = sorted(set(entry) - set(FIELDS))
-        if extra:
-            raise _refuse(
-                path,
-                f"motor {name!r} has an unknown field {extra[0]!r}; expected {', '.join(FIELDS)}",
-            )
-        values: dict[str, int] = {}
-        for field in FIELDS:
-            if field not in entry:
-                raise _refuse(path, f"motor {name!r} has no {field!r}")
-            value = entry[field]
-            if isinstance(value, bool) or not isinstance(value, int):
-                raise _refuse(
-                    path, f"motor {name!r} field {field!r} must be an integer; got {value!r}"
-                )
-            values[field] = value
-        if values["drive_mode"] not in (0, 1):
-            raise _refuse(
-                path,
-                f"motor {name!r} field 'drive_mode' must be 0 or 1; got {values['drive_mode']!r}",
-            )
-        for field in ("range_min", "range_max"):
-            if not 0 <= values[field] <= MAX_TICKS:
-                raise _refuse(
-                    path,
-                    f"motor {name!r} field {field!r} must be 0 to {MAX_TICKS} ticks; got {values[field]!r}",
-                )
-        if values["range_min"] >= values["range_max"]:
-            raise _refuse(
-                path,
-                f"motor {name!r} has range_min {values['range_min']} >= range_max "
-                f"{values['range_max']}; the lowest reading must come first",
-            )
-        motors[name] = MotorCalibration(**values)
+        motors[name] = _motor(path, name, content[name])
     return Calibration(str(path), motors)
 
 

@@ -126,6 +126,36 @@ def _refuse(source: object, problem: str) -> ValueError:
     )
 
 
+def _joint_values(source: object, name: str, entry: Any) -> dict[str, float]:
+    """One joint's fields of a dynamics file (checked, as floats)."""
+    if not isinstance(entry, Mapping):
+        raise _refuse(source, f"joints.{name} is a {type(entry).__name__}, not an object of fields")
+    extra = sorted(set(entry) - set(JOINT_FIELDS))
+    if extra:
+        raise _refuse(
+            source,
+            f"joints.{name} has an unknown field {extra[0]!r}; expected {', '.join(JOINT_FIELDS)}",
+        )
+    values: dict[str, float] = {}
+    for key in JOINT_FIELDS:
+        if key not in entry:
+            continue
+        value = entry[key]
+        where = f"joints.{name}.{key}"
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise _refuse(source, f"{where} must be a number ({FIELD_UNITS[key]}); got {value!r}")
+        if not math.isfinite(value):
+            raise _refuse(source, f"{where} must be finite; got {value!r}")
+        if key == "kp" and value <= 0:
+            raise _refuse(
+                source, f"{where} must be a positive gain ({FIELD_UNITS[key]}); got {value!r}"
+            )
+        if value < 0:
+            raise _refuse(source, f"{where} must be >= 0 ({FIELD_UNITS[key]}); got {value!r}")
+        values[key] = float(value)
+    return values
+
+
 def check_dynamics(content: Any, source: object = "<dict>") -> Dynamics:
     """Check a dynamics file's parsed content.
 
@@ -161,42 +191,7 @@ def check_dynamics(content: Any, source: object = "<dict>") -> Dynamics:
             raise _refuse(
                 source, f"unknown joint {name!r} in 'joints'; the SO-101 has {', '.join(names)}"
             )
-    joints: dict[str, dict[str, float]] = {}
-    for name in names:
-        if name not in entries:
-            continue
-        entry = entries[name]
-        if not isinstance(entry, Mapping):
-            raise _refuse(
-                source, f"joints.{name} is a {type(entry).__name__}, not an object of fields"
-            )
-        extra = sorted(set(entry) - set(JOINT_FIELDS))
-        if extra:
-            raise _refuse(
-                source,
-                f"joints.{name} has an unknown field {extra[0]!r}; expected "
-                f"{', '.join(JOINT_FIELDS)}",
-            )
-        values: dict[str, float] = {}
-        for key in JOINT_FIELDS:
-            if key not in entry:
-                continue
-            value = entry[key]
-            where = f"joints.{name}.{key}"
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise _refuse(
-                    source, f"{where} must be a number ({FIELD_UNITS[key]}); got {value!r}"
-                )
-            if not math.isfinite(value):
-                raise _refuse(source, f"{where} must be finite; got {value!r}")
-            if key == "kp" and value <= 0:
-                raise _refuse(
-                    source, f"{where} must be a positive gain ({FIELD_UNITS[key]}); got {value!r}"
-                )
-            if value < 0:
-                raise _refuse(source, f"{where} must be >= 0 ({FIELD_UNITS[key]}); got {value!r}")
-            values[key] = float(value)
-        joints[name] = values
+    joints = {name: _joint_values(source, name, entries[name]) for name in names if name in entries}
     delay = content.get("control_delay_steps")
     if delay is not None:
         if isinstance(delay, bool) or not isinstance(delay, int):

@@ -1,8 +1,9 @@
 """One recording attempt: what it needs, the loop that plays it, where its origin goes.
 
-The recorder (:mod:`gym_soarm.record.record`) and its runners in worker processes
-(:mod:`gym_soarm.record.parallel`) and Ray tasks (:mod:`gym_soarm.record.ray_tasks`) all
-play attempts through :func:`record_attempt` from an :class:`AttemptPlan`.
+The recorder (:mod:`gym_soarm.record.record`) and its runners in this process
+(:func:`record_here`), in worker processes (:mod:`gym_soarm.record.parallel`) and in Ray
+tasks (:mod:`gym_soarm.record.ray_tasks`) all play attempts through
+:func:`record_attempt` from an :class:`AttemptPlan`.
 """
 
 from __future__ import annotations
@@ -105,3 +106,40 @@ def write_variation(
     line = {"episode_index": episode_index, "task": task, "seed": seed, **(drawn or {})}
     with open(Path(root) / VARIATION_PATH, "a", encoding="utf-8") as out:
         out.write(json.dumps(line) + "\n")
+
+
+def record_here(
+    root: str | os.PathLike[str],
+    writer: LeRobotDatasetWriter,
+    plan: AttemptPlan,
+    episodes: int,
+    max_attempts: int,
+    bar: Any,
+) -> tuple[int, int, bool]:
+    """Record one task's attempts in this process into ``writer`` until ``episodes`` are
+    kept or ``max_attempts`` made: (attempts, successes, interrupted by Ctrl-C)."""
+    from gym_soarm.expert import make_expert
+
+    kept = attempts = successes = 0
+    env = gym.make(plan.spec.env_id, **plan.env_kwargs)
+    try:
+        expert = make_expert(env)
+        while kept < episodes and attempts < max_attempts:
+            success, drawn = record_attempt(env, expert, writer, plan, attempts)
+            attempts += 1
+            successes += success
+            if success or plan.keep == "all":
+                index = writer.save_episode()
+                write_variation(root, index, plan.seed + attempts - 1, drawn, plan.spec.name)
+                kept += 1
+                if bar is not None:
+                    bar.update(1)
+            else:
+                writer.clear_episode_buffer()
+            if bar is not None:
+                bar.set_postfix(success=f"{successes}/{attempts}", frames=writer.num_frames)
+    except KeyboardInterrupt:
+        return attempts, successes, True
+    finally:
+        env.close()
+    return attempts, successes, False

@@ -359,123 +359,169 @@ def record_in_workers(
     merger = OrderedMerger(
         writer, plan.seed, episodes, max_attempts, bar, f"{workers} processes", plan.spec.name
     )
-    retry: list[int] = []  # attempts whose worker died, lowest first
-    deaths: dict[int, int] = {}
-    start_deaths = 0  # workers that died before they were ready
+    pool = _Pool(context, plan, shard_root, merger, workers)
     interrupted = False
-    slots: list[_Slot] = []
-    player: _Player | None = None
-
-    def next_attempt() -> int | None:
-        return retry.pop(0) if retry else merger.take_attempt()
-
-    starter = None if plan.state_only else _Starter(context, plan, shard_root, workers - 1)
     try:
+        pool.run()
+    except KeyboardInterrupt:
+        interrupted = True
+        merger.merge_finished()  # every finished episode is kept, in attempt order
+    finally:
+        pool.close(interrupted)
+    return merger.merged, merger.successes, interrupted
+
+
+class _Pool:
+    """The recording loop of :func:`record_in_workers`: its worker processes, the
+    attempts they play, the attempts to play again and this process's own player."""
+
+    def __init__(
+        self,
+        context: Any,
+        plan: AttemptPlan,
+        shard_root: Path,
+        merger: OrderedMerger,
+        workers: int,
+    ) -> None:
+        self.context, self.plan, self.shard_root = context, plan, shard_root
+        self.merger = merger
+        self.workers = workers
+        self.retry: list[int] = []  # attempts whose worker died, lowest first
+        self.deaths: dict[int, int] = {}
+        self.start_deaths = 0  # workers that died before they were ready
+        self.slots: list[_Slot] = []
+        self.player: _Player | None = None
+        self.starter = None if plan.state_only else self._start_workers()
+
+    def _start_workers(self) -> _Starter:
+        return _Starter(self.context, self.plan, self.shard_root, self.workers - 1)
+
+    def next_attempt(self) -> int | None:
+        return self.retry.pop(0) if self.retry else self.merger.take_attempt()
+
+    def run(self) -> None:
+        """Hand out attempts and merge their results until the merger is finished."""
+        merger = self.merger
         while True:
             merger.merge_ready()
             if merger.finished:
                 break
-            if starter is not None:
-                slots.extend(starter.new_slots())
-                if starter.error is not None:
-                    raise RuntimeError(f"could not start a recording worker: {starter.error}")
-            # Attempts not merged yet never exceed the episodes still needed: no attempt
-            # past the last kept one is ever played, whatever the timing.
-            for index, slot in enumerate(slots):
-                if slot.attempt is not None or not slot.ready:
-                    continue
-                attempt = next_attempt()
-                if attempt is None:
-                    break
-                try:
-                    slot.conn.send(attempt)
-                except OSError:  # it died while idle: a new worker will take attempts
-                    slot.stop(0)
-                    slots[index] = _Slot(context, plan, shard_root)
-                    retry.append(attempt)
-                    retry.sort()
-                    continue
-                slot.attempt = attempt
-            watched = [s.conn for s in slots] + [s.process.sentinel for s in slots]
+            if self.starter is not None:
+                self.slots.extend(self.starter.new_slots())
+                if self.starter.error is not None:
+                    raise RuntimeError(f"could not start a recording worker: {self.starter.error}")
+            self._hand_out()
+            watched = [s.conn for s in self.slots] + [s.process.sentinel for s in self.slots]
             ready = set(wait(watched, timeout=0))
             if not ready:
-                attempt = next_attempt()
+                attempt = self.next_attempt()
                 if attempt is not None:  # nobody free: this process plays it
-                    if player is None:
-                        player = _Player(plan, shard_root)
-                    started = time.perf_counter()
-                    if attempt == merger.merged and not merger.results:
-                        # The next to merge: straight into the dataset, no shard.
-                        success, index, drawn = player.play_into(writer, attempt)
-                        merger.add_saved(attempt, success, index, drawn)
-                    else:
-                        success, shard, drawn = player.play(attempt)
-                        merger.add(attempt, success, None if shard is None else Path(shard), drawn)
-                    left = episodes - merger.kept - 1  # at the least
-                    if starter is None and left * (time.perf_counter() - started) > WORKER_START_S:
-                        starter = _Starter(context, plan, shard_root, workers - 1)
+                    self._play_here(attempt)
                     continue
-                if not any(slot.attempt is not None for slot in slots):
+                if not any(slot.attempt is not None for slot in self.slots):
                     raise RuntimeError(
                         f"no attempt is running and attempt {merger.merged} has no result; "
                         "expected a worker to be playing it (this is a bug in gym_soarm)."
                     )
                 ready = set(wait(watched))
-            for index, slot in enumerate(slots):
-                if slot.conn not in ready and slot.process.sentinel not in ready:
-                    continue
-                message = None
-                if slot.conn in ready:
-                    try:
-                        message = slot.conn.recv()
-                    except (EOFError, OSError):
-                        message = None
-                if message is not None and message[0] == "error":
-                    raise RuntimeError(f"a recording worker failed:\n{message[1]}")
-                if message is not None and message[0] == "ready":
-                    slot.ready = True
-                    continue
-                if message is not None:
-                    _, attempt, success, shard, drawn = message
-                    merger.add(attempt, success, None if shard is None else Path(shard), drawn)
-                    slot.attempt = None
-                    continue
-                # The worker died (mid-attempt or starting): replace it, replay its attempt.
-                slot.process.join()
-                lost = slot.attempt
+            for index, slot in enumerate(self.slots):
+                if slot.conn in ready or slot.process.sentinel in ready:
+                    self._receive(index, slot, ready)
+
+    def _hand_out(self) -> None:
+        """Send the next attempts to the ready, free workers. Attempts not merged yet never
+        exceed the episodes still needed: no attempt past the last kept one is ever played,
+        whatever the timing."""
+        for index, slot in enumerate(self.slots):
+            if slot.attempt is not None or not slot.ready:
+                continue
+            attempt = self.next_attempt()
+            if attempt is None:
+                break
+            try:
+                slot.conn.send(attempt)
+            except OSError:  # it died while idle: a new worker will take attempts
                 slot.stop(0)
-                if lost is not None:
-                    deaths[lost] = deaths.get(lost, 0) + 1
-                    if deaths[lost] >= MAX_DEATHS_PER_ATTEMPT:
-                        raise RuntimeError(
-                            f"attempt {lost} (seed {plan.seed + lost}) took its worker down "
-                            f"{deaths[lost]} times (last exit code {slot.process.exitcode}); "
-                            "expected a worker to finish it. A script that records with workers "
-                            'must start them under `if __name__ == "__main__":` (spawn and '
-                            "forkserver import the main module again); otherwise try the attempt "
-                            "alone with workers=1."
-                        )
-                    retry.append(lost)
-                    retry.sort()
-                elif not slot.ready:
-                    start_deaths += 1
-                    if start_deaths >= MAX_DEATHS_PER_ATTEMPT:
-                        raise RuntimeError(
-                            f"recording workers died {start_deaths} times while starting (last "
-                            f"exit code {slot.process.exitcode}). A script that records with "
-                            'workers must start them under `if __name__ == "__main__":` (spawn '
-                            "and forkserver import the main module again); otherwise record with "
-                            "workers=1."
-                        )
-                slots[index] = _Slot(context, plan, shard_root)
-    except KeyboardInterrupt:
-        interrupted = True
-        merger.merge_finished()  # every finished episode is kept, in attempt order
-    finally:
-        if starter is not None:
-            slots.extend(starter.stop())
-        for slot in slots:
+                self.slots[index] = _Slot(self.context, self.plan, self.shard_root)
+                self.retry.append(attempt)
+                self.retry.sort()
+                continue
+            slot.attempt = attempt
+
+    def _play_here(self, attempt: int) -> None:
+        """Play ``attempt`` in this process; start the workers if the attempts left take
+        longer than starting them."""
+        merger = self.merger
+        if self.player is None:
+            self.player = _Player(self.plan, self.shard_root)
+        started = time.perf_counter()
+        if attempt == merger.merged and not merger.results:
+            # The next to merge: straight into the dataset, no shard.
+            success, index, drawn = self.player.play_into(merger.writer, attempt)
+            merger.add_saved(attempt, success, index, drawn)
+        else:
+            success, shard, drawn = self.player.play(attempt)
+            merger.add(attempt, success, None if shard is None else Path(shard), drawn)
+        left = merger.episodes - merger.kept - 1  # at the least
+        if self.starter is None and left * (time.perf_counter() - started) > WORKER_START_S:
+            self.starter = self._start_workers()
+
+    def _receive(self, index: int, slot: _Slot, ready: set[Any]) -> None:
+        """Take what worker ``index`` said (ready, a result, an error) or replace it if it
+        died."""
+        message = None
+        if slot.conn in ready:
+            try:
+                message = slot.conn.recv()
+            except (EOFError, OSError):
+                message = None
+        if message is not None and message[0] == "error":
+            raise RuntimeError(f"a recording worker failed:\n{message[1]}")
+        if message is not None and message[0] == "ready":
+            slot.ready = True
+        elif message is not None:
+            _, attempt, success, shard, drawn = message
+            self.merger.add(attempt, success, None if shard is None else Path(shard), drawn)
+            slot.attempt = None
+        else:
+            self._replace_dead(index, slot)
+
+    def _replace_dead(self, index: int, slot: _Slot) -> None:
+        """A worker died (mid-attempt or starting): replace it and replay its attempt."""
+        slot.process.join()
+        lost = slot.attempt
+        slot.stop(0)
+        if lost is not None:
+            self.deaths[lost] = self.deaths.get(lost, 0) + 1
+            if self.deaths[lost] >= MAX_DEATHS_PER_ATTEMPT:
+                raise RuntimeError(
+                    f"attempt {lost} (seed {self.plan.seed + lost}) took its worker down "
+                    f"{self.deaths[lost]} times (last exit code {slot.process.exitcode}); "
+                    "expected a worker to finish it. A script that records with workers "
+                    'must start them under `if __name__ == "__main__":` (spawn and '
+                    "forkserver import the main module again); otherwise try the attempt "
+                    "alone with workers=1."
+                )
+            self.retry.append(lost)
+            self.retry.sort()
+        elif not slot.ready:
+            self.start_deaths += 1
+            if self.start_deaths >= MAX_DEATHS_PER_ATTEMPT:
+                raise RuntimeError(
+                    f"recording workers died {self.start_deaths} times while starting (last "
+                    f"exit code {slot.process.exitcode}). A script that records with "
+                    'workers must start them under `if __name__ == "__main__":` (spawn '
+                    "and forkserver import the main module again); otherwise record with "
+                    "workers=1."
+                )
+        self.slots[index] = _Slot(self.context, self.plan, self.shard_root)
+
+    def close(self, interrupted: bool) -> None:
+        """Stop the workers (those playing an attempt get 5 s, unless interrupted) and this
+        process's player."""
+        if self.starter is not None:
+            self.slots.extend(self.starter.stop())
+        for slot in self.slots:
             slot.stop(0 if interrupted or slot.attempt is None else 5)
-        if player is not None:
-            player.close()
-    return merger.merged, merger.successes, interrupted
+        if self.player is not None:
+            self.player.close()

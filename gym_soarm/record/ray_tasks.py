@@ -123,6 +123,22 @@ def ray_session(address: str) -> Iterator[None]:
             ray.shutdown()
 
 
+def _collect(ray: Any, ref: Any, shard_root: Path, merger: OrderedMerger) -> None:
+    """Hand a finished task's attempt to ``merger``, its shard written under ``shard_root``."""
+    try:
+        attempt, success, files, drawn = ray.get(ref)
+    except Exception as exc:  # Ray wraps the task's error; ours names the attempt
+        raise RuntimeError(f"a Ray recording task failed for good: {exc}") from exc
+    shard = None
+    if files is not None:
+        shard = shard_root / f"attempt-{attempt:07d}"
+        shutil.rmtree(shard, ignore_errors=True)
+        shard.mkdir()
+        for name, content in files.items():
+            (shard / name).write_bytes(content)
+    merger.add(attempt, success, shard, drawn)
+
+
 def record_with_ray(
     writer: LeRobotDatasetWriter,
     plan: AttemptPlan,
@@ -165,21 +181,6 @@ def record_with_ray(
     )
     pending: list[Any] = []
     interrupted = False
-
-    def collect(ref: Any) -> None:
-        try:
-            attempt, success, files, drawn = ray.get(ref)
-        except Exception as exc:  # Ray wraps the task's error; ours names the attempt
-            raise RuntimeError(f"a Ray recording task failed for good: {exc}") from exc
-        shard = None
-        if files is not None:
-            shard = shard_root / f"attempt-{attempt:07d}"
-            shutil.rmtree(shard, ignore_errors=True)
-            shard.mkdir()
-            for name, content in files.items():
-                (shard / name).write_bytes(content)
-        merger.add(attempt, success, shard, drawn)
-
     try:
         while True:
             merger.merge_ready()
@@ -197,7 +198,7 @@ def record_with_ray(
                 )
             done, pending = ray.wait(pending, num_returns=1)
             for ref in done:
-                collect(ref)
+                _collect(ray, ref, shard_root, merger)
     except KeyboardInterrupt:
         interrupted = True
         merger.merge_finished()

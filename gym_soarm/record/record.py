@@ -46,9 +46,14 @@ from gym_soarm.data import LeRobotDatasetWriter
 from gym_soarm.envs.control import action_names
 from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.real.units import FEATURE_NAMES, joint_units
-from gym_soarm.record.attempt import AttemptPlan, record_attempt, write_variation
+from gym_soarm.record.attempt import AttemptPlan, record_here
 from gym_soarm.tasks import get_task, lift_cube
-from gym_soarm.tasks.suites import distinct_tasks, resolve_selection, shared_state_names
+from gym_soarm.tasks.suites import (
+    SelectedTask,
+    distinct_tasks,
+    resolve_selection,
+    shared_state_names,
+)
 from gym_soarm.validation import ArgumentTypeError, check_int, parse_size, resolve_camera_config
 
 CAMERA_CONFIG_NONE = "none"
@@ -223,9 +228,21 @@ _NOT_RECORDED = ("render_mode", "image_modalities", "normalize_actions")
 """Settings the recorder leaves at their defaults (the dataset could not hold them)."""
 
 
-def _recording_settings(settings: EnvSettings | None, task: str, **keywords: Any) -> EnvSettings:
-    """The settings of a recording: ``settings`` as given (then ``keywords`` must be the
-    recorder's defaults), else built from ``keywords``."""
+def _recording_settings(
+    settings: EnvSettings | None,
+    task: str,
+    variation: Mapping[str, Any] | None,
+    **keywords: Any,
+) -> EnvSettings:
+    """The settings of a recording: ``settings`` as given (then ``keywords`` and
+    ``variation`` must be the recorder's defaults), else built from them."""
+    variation = dict(variation or {})
+    unknown = sorted(set(variation) - set(VARIATION_KEYWORDS))
+    if unknown:
+        raise ValueError(
+            f"variation takes the keywords {', '.join(VARIATION_KEYWORDS)}; got {unknown}."
+        )
+    keywords.update(variation)
     if settings is None:
         kwargs = {k: v for k, v in keywords.items() if v is not None or k in _RECORD_DEFAULTS}
         if kwargs.get("calibration") is not None:
@@ -349,37 +366,114 @@ def record(
     selected = distinct_tasks(resolve_selection(task))
     episodes = check_int("episodes", episodes, 1)
     seed = check_int("seed", seed, 0)
-    variation = dict(variation or {})
-    unknown = sorted(set(variation) - set(VARIATION_KEYWORDS))
-    if unknown:
-        raise ValueError(
-            f"variation takes the keywords {', '.join(VARIATION_KEYWORDS)}; got {unknown}."
-        )
     settings = _recording_settings(
         settings,
         selected[0].task,
+        variation,
         units=units,
         wrist_roll_offset_deg=wrist_roll_offset_deg,
         control_mode=control_mode,
         calibration=calibration,
         dynamics=dynamics,
-        **variation,
     )
     units, wrist_roll_offset_deg = settings.units, settings.wrist_roll_offset_deg
-    calibration, control_mode = settings.calibration, settings.control_mode
-    joint_units(units, wrist_roll_offset_deg, calibration)  # checks units, offset, file
+    joint_units(units, wrist_roll_offset_deg, settings.calibration)  # checks units, offset, file
+    _check_keep_and_noise(keep, dart_noise)
+    height, width = parse_size(f"{size[0]}x{size[1]}")
+    state_only = camera_config == CAMERA_CONFIG_NONE
+    cameras = () if state_only else resolve_camera_config(camera_config)
+    run = _Run.checked(episodes, max_attempts, workers, start_method, ray_address)
+    settings = _observed(settings, None if state_only else cameras, height, width)
+    started = time.perf_counter()
+    plans = _attempt_plans(
+        selected,
+        settings,
+        (height, width),
+        robot_type=robot_type_for(units),
+        seed=seed,
+        dart_noise=float(dart_noise),
+        keep=keep,
+        units=units,
+        wrist_roll_offset_deg=wrist_roll_offset_deg,
+        cameras=tuple(cameras),
+        state_only=state_only,
+    )
+    writer = LeRobotDatasetWriter.create(
+        root,
+        settings.control_hz,
+        plans[0].features,
+        robot_type=plans[0].robot_type,
+        overwrite=overwrite,
+    )
+    write_recording_settings(root, settings)
+    attempts, successes, interrupted = _record_plans(root, writer, plans, run, progress)
+    return RecordSummary(
+        root=Path(root),
+        episodes=writer.num_episodes,
+        frames=writer.num_frames,
+        attempts=attempts,
+        successes=successes,
+        seconds=time.perf_counter() - started,
+        bytes_on_disk=sum(p.stat().st_size for p in Path(root).rglob("*") if p.is_file()),
+        interrupted=interrupted,
+        tasks=tuple(plan.spec.name for plan in plans),
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class _Run:
+    """How every task's attempts run: how many, and where (checked)."""
+
+    episodes: int
+    max_attempts: int
+    workers: int
+    start_method: str | None
+    ray_address: str | None
+
+    @classmethod
+    def checked(
+        cls,
+        episodes: int,
+        max_attempts: Any,
+        workers: Any,
+        start_method: Any,
+        ray_address: Any,
+    ) -> _Run:
+        """The run of :func:`record`'s arguments; ValueError for a bad one."""
+        if max_attempts is None:
+            max_attempts = 3 * episodes + 10
+        max_attempts = check_int("max_attempts", max_attempts, episodes)
+        workers = _check_workers(workers, ray_address, start_method)
+        return cls(episodes, max_attempts, workers, start_method, ray_address)
+
+
+def _observed(
+    settings: EnvSettings, cameras: Sequence[str] | None, height: int, width: int
+) -> EnvSettings:
+    """``settings`` observing what is recorded: ``cameras`` at ``height`` x ``width``
+    (images), or the task state (``cameras`` None)."""
+    if cameras is None:
+        return settings.replace(obs_type="environment_state_agent_pos")
+    return settings.replace(
+        obs_type="pixels_agent_pos",
+        camera_config=tuple(cameras),
+        observation_height=height,
+        observation_width=width,
+    )
+
+
+def _check_keep_and_noise(keep: Any, dart_noise: Any) -> None:
+    """Refuse a ``keep`` that is not a choice and a ``dart_noise`` that is not radians >= 0."""
     if keep not in KEEP_CHOICES:
         raise ValueError(f"keep must be one of {', '.join(KEEP_CHOICES)}; got {keep!r}.")
     if isinstance(dart_noise, bool) or not isinstance(dart_noise, (int, float)):
         raise ValueError(f"dart_noise must be a number of radians >= 0; got {dart_noise!r}.")
     if not np.isfinite(dart_noise) or dart_noise < 0:
         raise ValueError(f"dart_noise must be a finite number of radians >= 0; got {dart_noise!r}.")
-    height, width = parse_size(f"{size[0]}x{size[1]}")
-    state_only = camera_config == CAMERA_CONFIG_NONE
-    cameras = () if state_only else resolve_camera_config(camera_config)
-    if max_attempts is None:
-        max_attempts = 3 * episodes + 10
-    max_attempts = check_int("max_attempts", max_attempts, episodes)
+
+
+def _check_workers(workers: Any, ray_address: Any, start_method: Any) -> int:
+    """The worker count, once ``workers``, ``ray_address`` and ``start_method`` are checked."""
     workers = check_int("workers", workers, 1)
     if ray_address is not None and (not isinstance(ray_address, str) or not ray_address):
         raise ValueError(
@@ -390,69 +484,62 @@ def record(
         raise ValueError(
             f"start_method must be one of {', '.join(START_METHODS)} or None; got {start_method!r}."
         )
+    return workers
 
-    if state_only:
-        settings = settings.replace(obs_type="environment_state_agent_pos")
-    else:
-        settings = settings.replace(
-            obs_type="pixels_agent_pos",
-            camera_config=tuple(cameras),
-            observation_height=height,
-            observation_width=width,
-        )
+
+def _attempt_plans(
+    selected: Sequence[SelectedTask],
+    settings: EnvSettings,
+    size: tuple[int, int],
+    **fields: Any,
+) -> list[AttemptPlan]:
+    """Each task's plan, with the dataset's features and ``fields`` common to all. Every
+    task's environment is built (and checked) here, before anything is written."""
     common_kwargs = settings.to_kwargs()
     del common_kwargs["task"]  # each task's gym id gives its own
-    started = time.perf_counter()
-    # Every task's environment is built (and checked) before anything is written.
     plans: list[AttemptPlan] = []
-    robot_type = robot_type_for(units)
-    names = shared_state_names(tuple(selected), settings.object_placement) if state_only else None
     for item in selected:
         spec = get_task(item.task)
         env_kwargs = {**common_kwargs, **item.variation}
         gym.make(spec.env_id, **env_kwargs).close()  # checks every keyword for this task
-        plans.append(
-            AttemptPlan(
-                spec=spec,
-                env_kwargs=env_kwargs,
-                features={},
-                robot_type=robot_type,
-                seed=seed,
-                dart_noise=float(dart_noise),
-                keep=keep,
-                units=units,
-                wrist_roll_offset_deg=wrist_roll_offset_deg,
-                cameras=tuple(cameras),
-                state_only=state_only,
-            )
-        )
-    features = dataset_features(cameras, height, width, names, control_mode)
-    plans = [dataclasses.replace(plan, features=features) for plan in plans]
-    writer = LeRobotDatasetWriter.create(
-        root, settings.control_hz, features, robot_type=robot_type, overwrite=overwrite
-    )
-    write_recording_settings(root, settings)
+        plans.append(AttemptPlan(spec=spec, env_kwargs=env_kwargs, features={}, **fields))
+    state_only, cameras = fields["state_only"], fields["cameras"]
+    names = shared_state_names(tuple(selected), settings.object_placement) if state_only else None
+    features = dataset_features(cameras, *size, names, settings.control_mode)
+    return [dataclasses.replace(plan, features=features) for plan in plans]
+
+
+def _record_plans(
+    root: str | os.PathLike[str],
+    writer: LeRobotDatasetWriter,
+    plans: list[AttemptPlan],
+    run: _Run,
+    progress: bool,
+) -> tuple[int, int, bool]:
+    """Record every task's episodes, one task after the other, then finalize ``writer``:
+    (attempts, successes, interrupted)."""
     attempts = successes = 0
     interrupted = False
     bar = None
     session = contextlib.ExitStack()
     try:
-        if ray_address is not None and len(plans) > 1:  # one Ray connection for all tasks
+        if run.ray_address is not None and len(plans) > 1:  # one Ray connection for all tasks
             from gym_soarm.record.ray_tasks import ray_session
 
-            session.enter_context(ray_session(ray_address))
+            session.enter_context(ray_session(run.ray_address))
         if progress:
             from tqdm import tqdm
 
             bar = tqdm(
-                total=episodes * len(plans), unit="episode", file=sys.stderr, dynamic_ncols=True
+                total=run.episodes * len(plans),
+                unit="episode",
+                file=sys.stderr,
+                dynamic_ncols=True,
             )
         for plan in plans:
             if bar is not None and len(plans) > 1:
                 bar.set_description(plan.spec.name)
-            outcome = _record_task(
-                root, writer, plan, episodes, max_attempts, workers, start_method, ray_address, bar
-            )
+            outcome = _record_task(root, writer, plan, run, bar)
             attempts += outcome[0]
             successes += outcome[1]
             if outcome[2]:
@@ -463,72 +550,34 @@ def record(
             bar.close()
         session.close()
         writer.finalize()
-    seconds = time.perf_counter() - started
-    size_bytes = sum(p.stat().st_size for p in Path(root).rglob("*") if p.is_file())
-    return RecordSummary(
-        root=Path(root),
-        episodes=writer.num_episodes,
-        frames=writer.num_frames,
-        attempts=attempts,
-        successes=successes,
-        seconds=seconds,
-        bytes_on_disk=size_bytes,
-        interrupted=interrupted,
-        tasks=tuple(plan.spec.name for plan in plans),
-    )
+    return attempts, successes, interrupted
 
 
 def _record_task(
     root: str | os.PathLike[str],
     writer: LeRobotDatasetWriter,
     plan: AttemptPlan,
-    episodes: int,
-    max_attempts: int,
-    workers: int,
-    start_method: str | None,
-    ray_address: str | None,
+    run: _Run,
     bar: Any,
 ) -> tuple[int, int, bool]:
     """Record one task's episodes into ``writer``: (attempts, successes, interrupted)."""
-    if ray_address is not None:
+    if run.ray_address is not None:
         from gym_soarm.record.ray_tasks import record_with_ray
 
         return record_with_ray(
             writer,
             plan,
-            episodes,
-            max_attempts,
-            ray_address,
-            parallel=workers if workers > 1 else None,
+            run.episodes,
+            run.max_attempts,
+            run.ray_address,
+            parallel=run.workers if run.workers > 1 else None,
             bar=bar,
         )
-    if workers > 1:
+    if run.workers > 1:
         from gym_soarm.record.parallel import record_in_workers
 
-        return record_in_workers(writer, plan, episodes, max_attempts, workers, start_method, bar)
+        return record_in_workers(
+            writer, plan, run.episodes, run.max_attempts, run.workers, run.start_method, bar
+        )
 
-    from gym_soarm.expert import make_expert
-
-    kept = attempts = successes = 0
-    env = gym.make(plan.spec.env_id, **plan.env_kwargs)
-    try:
-        expert = make_expert(env)
-        while kept < episodes and attempts < max_attempts:
-            success, drawn = record_attempt(env, expert, writer, plan, attempts)
-            attempts += 1
-            successes += success
-            if success or plan.keep == "all":
-                index = writer.save_episode()
-                write_variation(root, index, plan.seed + attempts - 1, drawn, plan.spec.name)
-                kept += 1
-                if bar is not None:
-                    bar.update(1)
-            else:
-                writer.clear_episode_buffer()
-            if bar is not None:
-                bar.set_postfix(success=f"{successes}/{attempts}", frames=writer.num_frames)
-    except KeyboardInterrupt:
-        return attempts, successes, True
-    finally:
-        env.close()
-    return attempts, successes, False
+    return record_here(root, writer, plan, run.episodes, run.max_attempts, bar)
