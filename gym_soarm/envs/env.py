@@ -329,7 +329,6 @@ class SoArmEnv(gym.Env):
         """The observation of the current state (pixel observations render now)."""
         return self._observer.observation()
 
-
     @property
     def commanded_targets(self) -> np.ndarray:
         """The six servo targets (rad) the last step set, or the reset's: the targets
