@@ -199,19 +199,11 @@ class TrainedPolicy:
 
 def _rsl_actor(folder: Path, settings: dict[str, Any], obs_shape: Any, action_shape: Any) -> Any:
     """The actor of an RSL-RL folder (:mod:`gym_soarm.rl.rsl`) as ``obs -> action``."""
-    import torch
-    from tensordict import TensorDict
+    from gym_soarm.rl.rsl_policy import RSL_MODEL_FILE, acting, load_actor
 
-    from gym_soarm.rl.rsl_policy import OBS_GROUP, RSL_MODEL_FILE, load_actor
-
-    model = load_actor(folder / RSL_MODEL_FILE, settings["recipe"], obs_shape[0], action_shape[0])
-
-    def act(obs: np.ndarray) -> np.ndarray:
-        batch = torch.as_tensor(np.asarray(obs, np.float32))[None]
-        with torch.inference_mode():
-            return model(TensorDict({OBS_GROUP: batch}, batch_size=[1]))[0].numpy()
-
-    return act
+    return acting(
+        load_actor(folder / RSL_MODEL_FILE, settings["recipe"], obs_shape[0], action_shape[0])
+    )
 
 
 def protocol_seeds(episodes: int, first_seed: int = EVAL_SEED) -> list[int]:

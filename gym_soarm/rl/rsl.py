@@ -36,6 +36,7 @@ from gym_soarm.rl.rsl_policy import (
     OBS_GROUP,
     RSL_LIBRARY,
     RSL_MODEL_FILE,
+    acting,
     require_rsl,
     runner_config,
 )
@@ -185,18 +186,8 @@ class RslTrainer:
 
     def policy(self) -> Any:
         """The deterministic actor as ``policy(obs, info) -> action`` for :func:`score`."""
-        import torch
-        from tensordict import TensorDict
-
-        actor = self.runner.alg.get_policy()
-
-        def act(obs: np.ndarray, info: dict[str, Any]) -> np.ndarray:
-            batch = torch.as_tensor(obs, dtype=torch.float32, device=self.device)[None]
-            td = TensorDict({OBS_GROUP: batch}, batch_size=[1], device=self.device)
-            with torch.inference_mode():
-                return actor(td)[0].cpu().numpy()
-
-        return act
+        act = acting(self.runner.alg.get_policy(), self.device)
+        return lambda obs, info: act(obs)
 
     def learn(self, steps: int, eval_every: int, episodes: int) -> None:
         """Train for ``steps`` environment steps, evaluating every ``eval_every``."""

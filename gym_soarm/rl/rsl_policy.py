@@ -91,10 +91,26 @@ def load_actor(
     return actor.eval()
 
 
+def acting(actor: Any, device: Any = "cpu") -> Any:
+    """An RSL-RL ``actor`` as ``act(obs) -> action``: one observation (a NumPy vector) in,
+    the deterministic action (NumPy) out."""
+    import numpy as np
+    import torch
+    from tensordict import TensorDict
+
+    def act(obs: Any) -> Any:
+        batch = torch.as_tensor(np.asarray(obs, np.float32), device=device)[None]
+        with torch.inference_mode():
+            return actor(TensorDict({OBS_GROUP: batch}, batch_size=[1], device=device))[0].cpu().numpy()
+
+    return act
+
+
 __all__ = [
     "OBS_GROUP",
     "RSL_LIBRARY",
     "RSL_MODEL_FILE",
+    "acting",
     "load_actor",
     "require_rsl",
     "runner_config",

@@ -169,13 +169,9 @@ def _compile(wp: Any, modules: list[Any], archs: list[int]) -> tuple[list[str], 
                 logger.warning("module %s not compiled: %s", module.name, exc)
                 skipped.append(module.name)
                 continue
-        if paths and not caught:
-            compiled.append(module.name)
-        else:
-            skipped.append(module.name)
-        logger.info(
-            "%s: %s", module.name, "compiled" if compiled[-1:] == [module.name] else "skipped"
-        )
+        done = bool(paths) and not caught
+        (compiled if done else skipped).append(module.name)
+        logger.info("%s: %s", module.name, "compiled" if done else "skipped")
     return compiled, skipped
 
 
