@@ -101,7 +101,11 @@ def acting(actor: Any, device: Any = "cpu") -> Any:
     def act(obs: Any) -> Any:
         batch = torch.as_tensor(np.asarray(obs, np.float32), device=device)[None]
         with torch.inference_mode():
-            return actor(TensorDict({OBS_GROUP: batch}, batch_size=[1], device=device))[0].cpu().numpy()
+            return (
+                actor(TensorDict({OBS_GROUP: batch}, batch_size=[1], device=device))[0]
+                .cpu()
+                .numpy()
+            )
 
     return act
 
