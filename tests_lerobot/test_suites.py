@@ -39,7 +39,7 @@ def pixels_config(task: str, **fields) -> SoArmEnvConfig:
 
 
 def test_a_suite_gives_one_vector_env_per_task_in_its_group():
-    config = pixels_config("soarm_core,soarm_language,StackCube-v0", vector_env="native")
+    config = pixels_config("soarm_core,soarm_language,StackCube-v0", vector_env="processes")
     envs = make_env(config, n_envs=2)
     try:
         assert list(envs) == ["soarm_core", "soarm_language", "soarm"]
@@ -93,10 +93,10 @@ def test_the_robust_suite_randomises_and_one_env_is_a_sync_vector_env():
             vector.close()
 
 
-def test_the_native_vector_env_gives_the_async_env_episodes():
+def test_the_processes_vector_env_gives_the_async_env_episodes():
     """Same seeds, same actions: the threaded env steps exactly as Gymnasium's do."""
     observations = {}
-    for vector_env in ("native", "async"):
+    for vector_env in ("processes", "async"):
         config = pixels_config("PushCube-v0", vector_env=vector_env)
         vector = make_env(config, n_envs=2)["soarm"][0]
         try:
@@ -110,8 +110,8 @@ def test_the_native_vector_env_gives_the_async_env_episodes():
             observations[vector_env] = (np.stack(frames), obs["pixels"]["front_camera"])
         finally:
             vector.close()
-    np.testing.assert_array_equal(observations["native"][0], observations["async"][0])
-    np.testing.assert_array_equal(observations["native"][1], observations["async"][1])
+    np.testing.assert_array_equal(observations["processes"][0], observations["async"][0])
+    np.testing.assert_array_equal(observations["processes"][1], observations["async"][1])
 
 
 def test_state_policies_need_one_state_layout():
@@ -124,7 +124,7 @@ def test_state_policies_need_one_state_layout():
     with pytest.raises(ValueError, match="soarm_core"):
         SoArmEnvConfig(task="soarm_cor")
     with pytest.raises(ValueError, match="vector_env must be one of"):
-        SoArmEnvConfig(vector_env="processes")
+        SoArmEnvConfig(vector_env="threads")
 
 
 def test_the_protocol_seed_is_lerobot_evals_default():
