@@ -21,6 +21,7 @@ from gymnasium.vector import AutoresetMode
 
 from gym_soarm.rl.evaluation import TrainedPolicy, read_settings, score
 from gym_soarm.rl.hyperparams import rsl_recipe
+from gym_soarm.rl.imitation import train_imitation
 from gym_soarm.rl.rsl import make_rsl_env
 from gym_soarm.rl.rsl_policy import RSL_LIBRARY
 from gym_soarm.rl.training import train
@@ -160,7 +161,7 @@ def test_bad_input_is_refused_before_anything_trains(tmp_path, kwargs, message):
     assert not (tmp_path / "out").exists()
 
 
-def test_cuda_without_a_gpu_and_other_libraries_folders_are_refused(tmp_path):
+def test_cuda_without_a_gpu_and_folders_it_cannot_start_from_are_refused(tmp_path):
     if not torch.cuda.is_available():
         with pytest.raises(ValueError, match="torch sees no CUDA device"):
             train("ppo", "reach", tmp_path / "x", vector_env="warp", device="cuda")
@@ -172,8 +173,56 @@ def test_cuda_without_a_gpu_and_other_libraries_folders_are_refused(tmp_path):
     }  # fmt: skip
     (sb3 / "settings.json").write_text(json.dumps(settings))
     (sb3 / "model.zip").write_bytes(b"")
-    with pytest.raises(ValueError, match="was not trained by PPO on RSL-RL"):
+    with pytest.raises(ValueError, match="another observation layout"):
+        train("ppo", "reach", tmp_path / "y", vector_env="batched", init=sb3)
+    settings.update(algo="sac")
+    (sb3 / "settings.json").write_text(json.dumps(settings))
+    with pytest.raises(ValueError, match="needs a PPO-class policy"):
         train("ppo", "reach", tmp_path / "y", vector_env="batched", init=sb3)
     with pytest.raises(ValueError, match="trains PPO \\(RSL-RL\\) only"):
         train("sac", "reach", tmp_path / "z", vector_env="warp")
     assert not any((tmp_path / name).exists() for name in ("x", "y", "z"))
+
+
+def test_ppo_on_rsl_rl_starts_from_a_bc_folder_acting_as_it_did(tmp_path):
+    """--init with a BC folder: the RSL-RL actor is the BC actor (same actions), its
+    observation statistics stay frozen, and the critic learns alone first."""
+    bc = tmp_path / "bc"
+    hyperparams = {"demos": 2, "epochs": 2, "policy_kwargs": {"net_arch": [32, 16]}}
+    train_imitation("bc", "reach", bc, seed=1, eval_episodes=1, hyperparams=hyperparams)
+    warmup = rsl_recipe("ReachTarget-v0")["init"]["critic_warmup"]
+    out = tmp_path / "rsl"
+    result = train(
+        "ppo", "reach", out, steps=1, eval_every=64 * 8, eval_episodes=2,
+        hyperparams=SMOKE, vector_env="batched", init=bc,
+    )  # fmt: skip
+    assert result.env_steps == warmup * 64 * 8  # the critic's warm-up, then nothing more
+    settings = read_settings(out)
+    assert settings["init"] == str(bc) and settings["recipe"]["frozen_actor_normalizer"]
+    assert settings["recipe"]["algo"]["hidden_dims"] == [32, 16]
+    assert settings["recipe"]["algo"]["activation"] == "tanh"
+    # The warm-up moved the critic, not the actor: the folder acts as BC does.
+    teacher, student = TrainedPolicy(bc), TrainedPolicy(out)
+    env = make_vector_env(1, vector_env="batched", task="ReachTarget-v0", **STATE)
+    obs, _ = env.reset(seed=[EVAL_SEED])
+    for _ in range(20):
+        action = teacher(obs[0], {})
+        np.testing.assert_allclose(student(obs[0], {}), action, atol=1e-5)
+        obs, *_ = env.step(action[None])
+    env.close()
+    with open(out / "curve.csv") as stream:
+        rows = list(csv.DictReader(stream))
+    assert [int(r["env_steps"]) for r in rows] == [0, warmup * 64 * 8]
+    assert rows[0]["success_rate"] == rows[1]["success_rate"]
+    # Training on moves the actor; its normaliser stays the BC folder's.
+    more = tmp_path / "more"
+    train(
+        "ppo", "reach", more, steps=64 * 8, eval_every=64 * 8, eval_episodes=1,
+        hyperparams=SMOKE, vector_env="batched", init=out,
+    )  # fmt: skip
+    before = torch.load(out / "model.pt", weights_only=False)["actor_state_dict"]
+    after = torch.load(more / "model.pt", weights_only=False)["actor_state_dict"]
+    for name in ("obs_normalizer._mean", "obs_normalizer._std"):
+        torch.testing.assert_close(after[name], before[name], rtol=0, atol=0)
+    assert not torch.equal(after["mlp.0.weight"], before["mlp.0.weight"])
+    assert read_settings(more)["recipe"]["algo"]["hidden_dims"] == [32, 16]

@@ -355,6 +355,7 @@ RSL_HYPERPARAMS: dict[str, dict[str, Any]] = {
             "obs_normalization": True,
             "init_noise_std": 1.0,
         },
+        "init": {"noise_std": 0.05, "critic_warmup": 10},
     },
     REACH: {"steps": 2_400_000, "eval_every": 50_000},
     LIFT: {"steps": 6_000_000, "eval_every": 250_000},
@@ -365,7 +366,10 @@ RSL_HYPERPARAMS: dict[str, dict[str, Any]] = {
 steps of every environment per iteration, ``schedule="adaptive"`` scales the learning
 rate to keep the policy's KL near ``desired_kl``) and the actor's and critic's MLP
 (``hidden_dims``, ``activation``, ``obs_normalization``, ``init_noise_std``: the Gaussian's
-first standard deviation, in normalised action units)."""
+first standard deviation, in normalised action units). The ``init`` keys apply to ``--init``
+with a BC, DAgger or SB3 PPO folder (:mod:`gym_soarm.rl.rsl_init`): ``noise_std`` (the
+Gaussian's first standard deviation) and ``critic_warmup`` (iterations in which only the
+critic learns)."""
 
 
 def rsl_recipe(task: str) -> dict[str, Any]:

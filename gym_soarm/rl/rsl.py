@@ -32,6 +32,7 @@ import numpy as np
 
 from gym_soarm.rl.curves import CURVE_FIELDS, TrainResult
 from gym_soarm.rl.evaluation import POLICY_FORMAT, SETTINGS_FILE, score
+from gym_soarm.rl.rsl_init import freeze_normalizer, load_sb3_actor, read_sb3_actor
 from gym_soarm.rl.rsl_policy import (
     OBS_GROUP,
     RSL_LIBRARY,
@@ -169,6 +170,7 @@ class RslTrainer:
         from rsl_rl.runners import OnPolicyRunner
 
         self.spec, self.folder, self.seed, self.settings = spec, folder, seed, settings
+        self.init = init
         self.device = device
         self.env_kwargs = dict(settings["env"])
         torch.manual_seed(seed)
@@ -178,8 +180,14 @@ class RslTrainer:
         )  # fmt: skip
         config = runner_config(settings["algo"])
         self.runner = OnPolicyRunner(self.env, config, log_dir=None, device=device)
-        if init is not None:
+        self.critic_warmup = 0  # iterations in which only the critic learns
+        if init is not None and (init / RSL_MODEL_FILE).is_file():
             self.runner.load(str(init / RSL_MODEL_FILE), map_location=device)
+        elif init is not None:  # a BC, DAgger or PPO folder of Stable-Baselines3
+            load_sb3_actor(self.runner.alg, read_sb3_actor(init), settings["init"]["noise_std"])
+            self.critic_warmup = int(settings["init"]["critic_warmup"])
+        if settings.get("frozen_actor_normalizer"):
+            freeze_normalizer(self.runner.alg.actor)
         self.steps_per_iteration = settings["num_envs"] * config["num_steps_per_env"]
         self.env_steps = 0
         self.last_rate: float | None = None
@@ -190,17 +198,43 @@ class RslTrainer:
         return lambda obs, info: act(obs)
 
     def learn(self, steps: int, eval_every: int, episodes: int) -> None:
-        """Train for ``steps`` environment steps, evaluating every ``eval_every``."""
+        """Train for ``steps`` environment steps, evaluating every ``eval_every`` (and once
+        before the first update when the actor came from an ``--init`` folder)."""
+        if self.critic_warmup:
+            self.evaluate(episodes, save=False)  # RSL-RL saves only once it has learned
+            self.warm_critic(self.critic_warmup)
         while self.env_steps < steps and not self.folder.stop():
             chunk = min(eval_every, steps - self.env_steps)
-            iterations = -(-chunk // self.steps_per_iteration)  # whole iterations, rounded up
-            self.runner.learn(iterations)
-            self.runner.current_learning_iteration += 1
-            self.env_steps += iterations * self.steps_per_iteration
+            self.iterate(-(-chunk // self.steps_per_iteration))  # whole iterations, rounded up
             self.evaluate(episodes)
+        rows = self.folder.rows
+        if self.env_steps and (not rows or rows[-1]["env_steps"] != self.env_steps):
+            self.evaluate(episodes)  # a warm-up that ran past ``steps``
         self.save()
 
-    def evaluate(self, episodes: int) -> None:
+    def iterate(self, iterations: int) -> None:
+        self.runner.learn(iterations)
+        self.runner.current_learning_iteration += 1
+        self.env_steps += iterations * self.steps_per_iteration
+
+    def warm_critic(self, iterations: int) -> None:
+        """``iterations`` of PPO in which the actor's parameters stay as they are; the
+        learning rate then restarts from the recipe's (the adaptive schedule saw no KL)."""
+        alg = self.runner.alg
+        parameters = list(alg.actor.parameters())
+        for parameter in parameters:
+            parameter.requires_grad_(False)
+        try:
+            self.iterate(iterations)
+        finally:
+            for parameter in parameters:
+                parameter.requires_grad_(True)
+        alg.learning_rate = float(self.settings["algo"]["learning_rate"])
+        for group in alg.optimizer.param_groups:
+            group["lr"] = alg.learning_rate
+        logger.info("%s: the critic learned alone for %d iterations", self.folder.title, iterations)
+
+    def evaluate(self, episodes: int, save: bool = True) -> None:
         self.runner.alg.eval_mode()
         result = score(self.spec.name, self.env_kwargs, self.policy(), episodes, EVAL_SEED)
         self.runner.alg.train_mode()
@@ -213,7 +247,8 @@ class RslTrainer:
                 "episodes": episodes,
             }
         )
-        self.save()
+        if save:
+            self.save()
         logger.info(
             "%s: %d steps, %.0f s, success %.0f %%",
             self.folder.title, self.env_steps, self.folder.wall_s(), 100 * self.last_rate,
@@ -234,6 +269,7 @@ class RslTrainer:
                 "env": self.env_kwargs,
                 "observation_names": list(self.observation_names()),
                 "recipe": self.settings,
+                **({} if self.init is None else {"init": str(self.init)}),
             },
         )
 

@@ -502,7 +502,7 @@ def _train_rsl(
     out_path = Path(out)
     if out_path.exists() and not out_path.is_dir():
         raise ValueError(f"out must be a folder; {str(out_path)!r} is a file. Pass a new folder.")
-    source = None if init is None else _check_rsl_init(Path(init), spec.name, settings["env"])
+    source = None if init is None else _check_rsl_init(Path(init), spec.name, settings)
     require_rsl()
     pyplot()
     return train_rsl(spec, out_path, seed, settings, steps, every, episodes, source)
@@ -529,18 +529,33 @@ def _check_rsl_device(device: str, vector_env: str) -> str:
     return device
 
 
-def _check_rsl_init(folder: Path, task: str, env_kwargs: dict[str, Any]) -> Path:
-    """An ``--init`` folder for RSL-RL: one it trained, on the same task and settings."""
-    settings = read_settings(folder)
-    if settings.get("library") != RSL_LIBRARY or not (folder / RSL_MODEL_FILE).is_file():
+def _check_rsl_init(folder: Path, task: str, settings: dict[str, Any]) -> Path:
+    """An ``--init`` folder for RSL-RL, checked against the run's task and settings: one
+    it trained (the run continues it, with its network), or a BC, DAgger or PPO folder of
+    Stable-Baselines3 (:mod:`gym_soarm.rl.rsl_init`: the run takes its actor's network and
+    freezes its observation statistics). ``settings`` is updated to match."""
+    from gym_soarm.rl.rsl_init import read_sb3_actor
+
+    env_kwargs = settings["env"]
+    source = read_settings(folder)  # ValueError: not a policy folder
+    if source.get("library") != RSL_LIBRARY:
+        probe = make_env(task, env_kwargs)
+        names = list(probe.unwrapped.observation_names)
+        probe.close()
+        _check_init(folder, task, env_kwargs, names, normalize=True)
+        actor = read_sb3_actor(folder)
+        settings["algo"].update(hidden_dims=actor.hidden_dims, activation=actor.activation)
+        settings["frozen_actor_normalizer"] = True
+        return folder
+    if not (folder / RSL_MODEL_FILE).is_file():
+        raise ValueError(f"--init {str(folder)!r} has no {RSL_MODEL_FILE}; it did not finish.")
+    if get_task(source["task"]).name != task or source["env"] != env_kwargs:
         raise ValueError(
-            f"--init {str(folder)!r} was not trained by PPO on RSL-RL (no {RSL_MODEL_FILE}, "
-            f"library {settings.get('library', 'stable_baselines3')!r}); PPO on "
-            "--vector-env batched or warp starts only from such a folder."
-        )
-    if get_task(settings["task"]).name != task or settings["env"] != env_kwargs:
-        raise ValueError(
-            f"--init {str(folder)!r} was trained on {settings['task']} with {settings['env']}; "
+            f"--init {str(folder)!r} was trained on {source['task']} with {source['env']}; "
             f"this run is {task} with {env_kwargs}. Start from a folder of the same task and settings."
         )
+    for key in ("hidden_dims", "activation", "obs_normalization"):
+        settings["algo"][key] = source["recipe"]["algo"][key]
+    if source["recipe"].get("frozen_actor_normalizer"):
+        settings["frozen_actor_normalizer"] = True
     return folder
