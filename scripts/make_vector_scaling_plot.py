@@ -33,7 +33,8 @@ PANEL = (420, 520)  # (height, width) of one panel
 MARGIN = (50, 60, 60, 20)  # top, left, bottom, right of the plotting area
 COLOURS = {  # BGR
     "batched": (40, 40, 200),
-    "native": (180, 100, 30),
+    "processes": (180, 100, 30),
+    "native": (180, 100, 30),  # the processes env in reports of earlier versions
     "async": (30, 130, 230),
     "sync": (110, 110, 110),
     "ceiling": (90, 170, 90),
@@ -41,7 +42,8 @@ COLOURS = {  # BGR
 }
 LABELS = {
     "batched": "batched (mujoco.batch)",
-    "native": "native (processes)",
+    "processes": "processes (worker processes)",
+    "native": "processes (worker processes)",
     "async": "AsyncVectorEnv",
     "sync": "SyncVectorEnv",
     "ceiling": "ceiling (free-running)",

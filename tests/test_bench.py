@@ -133,10 +133,10 @@ def test_vector_scaling_compares_the_three_vector_envs_and_is_plotted(tmp_path):
          "--image-size", "48x64", "--seconds", "0.1", "--repeats", "2", "--json", str(out)]
     )  # fmt: skip
     assert (
-        "| num_envs | batched steps/s (speedup) | native steps/s (speedup) | async steps/s "
+        "| num_envs | batched steps/s (speedup) | processes steps/s (speedup) | async steps/s "
         "(speedup) |" in proc.stdout
     )
-    assert "target native_vector_state_" in proc.stdout
+    assert "target processes_vector_state_" in proc.stdout
     assert "target batched_vector_state_2 speedup >= 1.8" in proc.stdout
 
     report = json.loads(out.read_text())
@@ -146,7 +146,7 @@ def test_vector_scaling_compares_the_three_vector_envs_and_is_plotted(tmp_path):
     assert (state["obs"], state["size"]) == ("state", None)
     assert (pixels["obs"], pixels["size"]) == ("front_wrist", [48, 64])
     for scaling in (state, pixels):
-        modes = ["batched", "native", "async", "sync"]
+        modes = ["batched", "processes", "async", "sync"]
         assert scaling["modes"] == modes
         assert scaling["single_steps_per_s"] > 0
         assert [(r["mode"], r["num_envs"]) for r in scaling["rows"]] == [
@@ -166,8 +166,8 @@ def test_vector_scaling_compares_the_three_vector_envs_and_is_plotted(tmp_path):
     ]
     assert batched_target["config"] == "batched_vector_state_2"
     assert batched_target["bound"] == 1.8
-    assert state_target["config"] == "native_vector_state_2" and state_target["bound"] == 1.7
-    assert pixels_target["config"] == "native_vector_front_wrist_2"
+    assert state_target["config"] == "processes_vector_state_2" and state_target["bound"] == 1.7
+    assert pixels_target["config"] == "processes_vector_front_wrist_2"
     assert pixels_target["bound"] == 1.8
     for target in (state_target, pixels_target):
         assert target["value"] > 0 and isinstance(target["met"], bool)
@@ -298,3 +298,22 @@ def test_quality_meshes_render_like_the_provider_meshes(camera):
         difference = np.abs(_render_pose(model.load_scene_model(visual=quality), camera) - provider)
         assert difference.mean() < mean_limit, quality
         assert (difference.max(axis=2) > 40).mean() < changed_limit, quality
+
+
+def test_the_earlier_name_native_still_measures_and_reads_the_processes_env():
+    from gym_soarm.bench import bench_vector
+    from gym_soarm.bench.targets import check_scaling_target
+
+    with pytest.warns(FutureWarning, match="vector mode 'native' is deprecated; pass 'processes'"):
+        assert bench_vector.vector_modes(["batched", "native"]) == ["batched", "processes"]
+    # A report written before the rename: its processes rows are called native.
+    rows = [
+        {"mode": mode, "num_envs": n, "speedup": speedup}
+        for mode in ("native", "processes")
+        for n, speedup in ((1, 0.9), (8, 1.75))
+    ]
+    for mode in ("native", "processes"):
+        report = {"obs": "state", "rows": [r for r in rows if r["mode"] == mode]}
+        (target,) = check_scaling_target([report])
+        assert target["config"] == "processes_vector_state_8"
+        assert target["value"] == 1.75 and target["met"] is True

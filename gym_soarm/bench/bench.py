@@ -31,10 +31,10 @@ rebuild the meshes and compile) is measured once per visual variant.
 
 ``--vector-scaling 1,2,4,8,16`` adds the scaling of vector environments
 (:mod:`gym_soarm.bench.bench_vector`): aggregate steps/s of the batched vector env (one
-``mujoco.batch``), the native vector env (worker processes), ``AsyncVectorEnv`` and ``SyncVectorEnv`` at each ``num_envs``, and the speedup
+``mujoco.batch``), the processes vector env (worker processes), ``AsyncVectorEnv`` and ``SyncVectorEnv`` at each ``num_envs``, and the speedup
 of each over one environment measured in the same rounds, beside the ceiling of free-running
 processes; state observations, and the camera configs of ``--vector-obs`` at
-``--image-size``. Its targets (the native env's best speedup at ``num_envs`` >= 8: at
+``--image-size``. Its targets (the processes env's best speedup at ``num_envs`` >= 8: at
 least 1.7 with state observations, 1.8 with cameras; the batched env's at 64 environments,
 or the most measured, at least 1.8 with state observations) join the checked targets.
 
@@ -272,7 +272,8 @@ def run(
             ``recording`` is asked for).
         vector_scaling: ``num_envs`` counts of the vector scaling (none: not measured).
         vector_obs: ``"state"`` or camera configs, each measured at every count.
-        vector_modes: vector envs compared (default: native, async and sync).
+        vector_modes: vector envs compared (default: batched, processes, async and sync;
+            ``native``, the earlier name of processes, with a ``FutureWarning``).
         image_size: (height, width) of the camera configs of the scaling and recording.
         recording: worker count of the recording throughput (0: not measured).
         recording_ray: also record as Ray tasks on a local cluster.
@@ -286,7 +287,7 @@ def run(
             seconds/repeats/processes or the scaling/recording options are out of range.
     """
     parsed = [BenchConfig.parse(name, task, control_mode, env) for name in configs]
-    vector_modes = tuple(vector_modes or bench_vector.VECTOR_MODES)
+    vector_modes = tuple(bench_vector.vector_modes(vector_modes or bench_vector.VECTOR_MODES))
     cameras = tuple(recording_cameras or bench_record.DEFAULT_CAMERAS)
     episodes = bench_record.DEFAULT_EPISODES if recording_episodes is None else recording_episodes
     _check_run(bool(parsed or vector_scaling or recording), seconds, repeats, processes)

@@ -15,7 +15,7 @@ TARGETS: tuple[tuple[str, str, float, str], ...] = (
     ("make_s", "state", 1.0, "max"),
 )
 RATIO_TARGET = 0.8  # every pixel configuration against its raw-renderer ceiling
-VECTOR_SPEEDUP_TARGET = 1.7  # the native vector env over one env, state observations
+VECTOR_SPEEDUP_TARGET = 1.7  # the processes vector env over one env, state observations
 BATCHED_SPEEDUP_TARGET = 1.8  # the batched vector env over one env, state observations
 BATCHED_TARGET_MIN_ENVS = 64  # ... at this many environments (or the most measured)
 VECTOR_CAMERA_SPEEDUP_TARGET = 1.8  # the same with cameras
@@ -44,22 +44,23 @@ def check_targets(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def check_scaling_target(scaling: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The scaling targets: the native vector env's best speedup over one env at
+    """The scaling targets: the processes vector env's best speedup over one env at
     ``num_envs`` >= 8 (or the largest count measured, if smaller), with state
     observations and with cameras."""
     checks = []
     for report in scaling:
-        native = [r for r in report.get("rows", []) if r["mode"] == "native"]
-        if not native:
+        # "native": the processes env's name in reports of earlier versions
+        processes = [r for r in report.get("rows", []) if r["mode"] in ("processes", "native")]
+        if not processes:
             continue
-        least = min(VECTOR_TARGET_MIN_ENVS, max(r["num_envs"] for r in native))
-        rows = [r for r in native if r["num_envs"] >= least]
+        least = min(VECTOR_TARGET_MIN_ENVS, max(r["num_envs"] for r in processes))
+        rows = [r for r in processes if r["num_envs"] >= least]
         if not rows:
             continue
         state = report.get("obs") == "state"
         bound = VECTOR_SPEEDUP_TARGET if state else VECTOR_CAMERA_SPEEDUP_TARGET
         best = max(rows, key=lambda r: r["speedup"])
-        name = f"native_vector_{report.get('obs')}_{best['num_envs']}"
+        name = f"processes_vector_{report.get('obs')}_{best['num_envs']}"
         checks.append({"config": name, "figure": "speedup", "bound": bound, "kind": "min",
                        "value": best["speedup"], "met": best["speedup"] >= bound})  # fmt: skip
     for report in scaling:

@@ -149,7 +149,7 @@ def _add_vector_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--vector-modes",
-        default="batched,native,async,sync",
+        default="batched,processes,async,sync",
         help="vector envs of --vector-scaling (default: %(default)s)",
     )
     parser.add_argument(

@@ -8,8 +8,9 @@ baseline) and as each vector env:
 * ``batched``: ``gym.make_vec(..., vectorization_mode="vector_entry_point",
   vector_env="batched")``, :class:`gym_soarm.vector.batched.BatchedVectorEnv`: every simulation
   in one ``mujoco.batch`` call (a thread per CPU), the task scored as arrays;
-* ``native``: the same with ``vector_env="processes"``, the worker processes of
-  :class:`gym_soarm.vector.SoArmVectorEnv` (one per CPU);
+* ``processes``: the same with ``vector_env="processes"``, the worker processes of
+  :class:`gym_soarm.vector.SoArmVectorEnv` (one per CPU; ``native`` is its earlier name,
+  still taken with a ``FutureWarning``; reports of earlier versions hold ``native`` rows);
 * ``async``: ``gymnasium.vector.AsyncVectorEnv``, one process per environment
   (``forkserver`` context);
 * ``sync``: ``gymnasium.vector.SyncVectorEnv``, every environment in turn in this thread.
@@ -20,7 +21,7 @@ rounds are reported. ``speedup`` is the median over rounds of a vector env's agg
 steps/s over the single environment's in the same round.
 
 Each round also measures the *ceiling* of that ``num_envs``: the same environments split
-over one process per CPU as the native env splits them, each process stepping its
+over one process per CPU as the processes env splits them, each process stepping its
 share in turn flat out, with no communication at all. Its speedup over one env is what
 this machine allows: cycling through several simulations in one process costs more
 per step than stepping one (each has its own 5 MB model, so they no longer fit the
@@ -43,6 +44,7 @@ import signal
 import statistics
 import subprocess
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
 from typing import Any
@@ -57,7 +59,12 @@ from gym_soarm.tasks import DEFAULT_TASK, get_task
 from gym_soarm.vector.workers import cpu_count, end_process, worker_context
 
 DEFAULT_ENV_ID = "gym_soarm/LiftCube-v0"
-VECTOR_MODES: tuple[str, ...] = ("batched", "native", "async", "sync")
+VECTOR_MODES: tuple[str, ...] = ("batched", "processes", "async", "sync")
+"""The vector envs measured: the package's own by the names ``gym.make_vec``'s ``vector_env``
+gives them (``batched``, ``processes``) and Gymnasium's ``AsyncVectorEnv`` and
+``SyncVectorEnv``."""
+DEPRECATED_MODES: dict[str, str] = {"native": "processes"}
+"""Earlier names of :data:`VECTOR_MODES`, still taken with a ``FutureWarning``."""
 DEFAULT_SIZE = (96, 128)  # (height, width) of camera observations
 N_ACTIONS = 64  # random actions (or batches) drawn up front and cycled
 
@@ -72,6 +79,23 @@ def env_kwargs(obs: str, size: tuple[int, int] = DEFAULT_SIZE) -> dict[str, Any]
         "observation_height": size[0],
         "observation_width": size[1],
     }
+
+
+def vector_modes(modes: Sequence[str]) -> list[str]:
+    """``modes`` with the deprecated names replaced (a ``FutureWarning`` for each)."""
+    named = []
+    for mode in modes:
+        if mode in DEPRECATED_MODES:
+            new = DEPRECATED_MODES[mode]
+            warnings.warn(
+                f"vector mode {mode!r} is deprecated; pass {new!r} (the name gym.make_vec's "
+                "vector_env gives it).",
+                FutureWarning,
+                stacklevel=3,
+            )
+            mode = new
+        named.append(mode)
+    return named
 
 
 def make_vector(
@@ -91,7 +115,7 @@ def make_vector(
             num_threads=num_processes,
             **kwargs,
         )
-    if mode == "native":
+    if mode == "processes":
         return gym.make_vec(
             env_id,
             num_envs=num_envs,
@@ -273,7 +297,7 @@ def _free_runner(
 
 class Ceiling:
     """``num_envs`` environments split over ``processes`` processes (default: one per
-    CPU; at most ``num_envs``) as the native vector env splits them, each process
+    CPU; at most ``num_envs``) as the processes vector env splits them, each process
     stepping its share in turn with no hand-off."""
 
     def __init__(
@@ -428,6 +452,7 @@ def measure(
     """
     if not num_envs or min(num_envs) < 1:
         raise ValueError(f"num_envs must list counts >= 1; got {list(num_envs)!r}.")
+    modes = vector_modes(modes)
     unknown = [m for m in modes if m not in VECTOR_MODES]
     if unknown or not modes:
         raise ValueError(f"modes must be among {', '.join(VECTOR_MODES)}; got {list(modes)!r}.")
@@ -528,7 +553,7 @@ def measure_vector_scaling(
     What ``python -m gym_soarm.bench --vector-scaling`` runs. Returns :func:`measure`'s
     report, or ``{"obs": obs, "error": ...}`` when the process failed.
     """
-    modes = list(modes or VECTOR_MODES)
+    modes = vector_modes(modes or VECTOR_MODES)
     if progress is not None:
         progress(f"measuring vector scaling ({obs}, num_envs {','.join(map(str, counts))}) ...")
     job = {
