@@ -291,9 +291,6 @@ LONG_FUNCTIONS: dict[str, int] = {
     "gym_soarm/data/writer.py:LeRobotDatasetWriter.save_episode": 79,
     "gym_soarm/real/sysid.py:fit_dynamics": 129,
     "gym_soarm/record/record.py:record": 78,
-    "gym_soarm/rl/imitation.py:bc_regularized_ppo_class": 83,
-    "gym_soarm/rl/pixels.py:build_network": 64,
-    "gym_soarm/rl/training.py:train": 72,
     "gym_soarm/sim/kinematics.py:ArmKinematics.solve_pose": 72,
     "gym_soarm/tasks/push_cube.py:PushStateExpert.decide": 76,
     "gym_soarm/vector/batched.py:BatchedVectorEnv.__init__": 68,
@@ -305,7 +302,6 @@ LONG_MODULES: dict[str, int] = {
     "gym_soarm/data/writer.py": 735,
     "gym_soarm/envs/control.py": 678,
     "gym_soarm/real/sysid.py": 638,
-    "gym_soarm/rl/imitation.py": 613,
     "gym_soarm/vector/processes.py": 645,
 }
 """Modules over MODULE_BUDGET lines today -> their lines, the most they may have."""

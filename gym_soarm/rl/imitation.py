@@ -38,7 +38,7 @@ environment's reset (``expert.reset()``) or step: with a Markov expert (a pure f
 of the environment's state) this labels any state; the clock-based experts of earlier
 versions still label the states they are stepped through.
 
-:class:`BCRegularizedPPO` is the PPO of ``--algo ppo --init DIR``
+:class:`gym_soarm.rl.bc_ppo.BCRegularizedPPO` is the PPO of ``--algo ppo --init DIR``
 (:func:`gym_soarm.rl.training.train`): after each PPO update it takes as many gradient
 steps on ``bc_coef * MSE(actor mean(obs_demo), expert action)`` over minibatches of the
 demonstrations, ``bc_coef`` decaying by ``bc_decay`` per update.
@@ -499,114 +499,11 @@ def check_pixel_student(spec: Any, env_kwargs: Mapping[str, Any]) -> None:
         )
 
 
-# --------------------------------------------------------------------------- PPO --init
-
-
-def bc_regularized_ppo_class() -> type:
-    """:class:`BCRegularizedPPO`, built on import of Stable-Baselines3 (which this module
-    does not need to be imported)."""
-    global BCRegularizedPPO
-    if BCRegularizedPPO is None:
-        import torch
-        from stable_baselines3 import PPO
-
-        class _BCRegularizedPPO(PPO):
-            """PPO with a behaviour-cloning term on the actor.
-
-            After each PPO update (:meth:`train`), as many gradient steps as the update
-            took (``n_epochs`` passes of minibatches), each on ``bc_coef * MSE(actor
-            mean(obs), expert action)`` over a minibatch of ``bc_batch_size``
-            demonstrations; ``bc_coef`` is then multiplied by ``bc_decay``. The
-            demonstrations' raw observations are normalised with the environment's
-            current statistics (a ``VecNormalize``) at each update.
-            """
-
-            demo_obs: np.ndarray | None = None
-            demo_actions: np.ndarray | None = None
-            bc_coef: float = 0.0
-            bc_decay: float = 1.0
-            bc_batch_size: int = 256
-            critic_warmup: int = 0
-            """PPO updates left in which only the value branch learns (the actor's
-            parameters frozen): a pretrained actor with an untrained critic would
-            otherwise be pushed by the critic's noise."""
-
-            def actor_parameters(self) -> list[Any]:
-                """The parameters of the actor (its branch, action head and log std)."""
-                return [*actor_parameters(self.policy), self.policy.log_std]
-
-            def set_demonstrations(
-                self,
-                obs: np.ndarray,
-                actions: np.ndarray,
-                bc_coef: float,
-                bc_decay: float,
-                bc_batch_size: int,
-            ) -> None:
-                self.demo_obs = np.asarray(obs, np.float32)
-                self.demo_actions = np.asarray(actions, np.float32)
-                self.bc_coef = float(bc_coef)
-                self.bc_decay = float(bc_decay)
-                self.bc_batch_size = int(bc_batch_size)
-
-            def _excluded_save_params(self) -> list[str]:
-                return [*super()._excluded_save_params(), "demo_obs", "demo_actions"]
-
-            def train(self) -> None:
-                if self.critic_warmup > 0:
-                    frozen = self.actor_parameters()
-                    for parameter in frozen:
-                        parameter.requires_grad_(False)
-                    try:
-                        super().train()
-                    finally:
-                        for parameter in frozen:
-                            parameter.requires_grad_(True)
-                    self.critic_warmup -= 1
-                    self.logger.record("train/critic_warmup_left", self.critic_warmup)
-                    return
-                super().train()
-                if self.demo_obs is None or not len(self.demo_obs) or self.bc_coef <= 0:
-                    return
-                normalizer = self.get_vec_normalize_env()
-                obs = self.demo_obs
-                if normalizer is not None:
-                    obs = normalizer.normalize_obs(obs)
-                x = torch.as_tensor(np.asarray(obs, np.float32), device=self.device)
-                y = torch.as_tensor(self.demo_actions, device=self.device)
-                steps = self.n_epochs * max(1, self.rollout_buffer.buffer_size
-                                            * self.rollout_buffer.n_envs // self.batch_size)  # fmt: skip
-                self.policy.set_training_mode(True)
-                losses = []
-                for _ in range(steps):
-                    index = torch.randint(len(x), (min(self.bc_batch_size, len(x)),))
-                    loss = torch.nn.functional.mse_loss(actor_mean(self.policy, x[index]), y[index])
-                    self.policy.optimizer.zero_grad()
-                    (self.bc_coef * loss).backward()
-                    torch.nn.utils.clip_grad_norm_(self.policy.parameters(), self.max_grad_norm)
-                    self.policy.optimizer.step()
-                    losses.append(loss.item())
-                self.policy.set_training_mode(False)
-                self.logger.record("train/bc_loss", float(np.mean(losses)))
-                self.logger.record("train/bc_coef", self.bc_coef)
-                self.bc_coef *= self.bc_decay
-
-        _BCRegularizedPPO.__name__ = _BCRegularizedPPO.__qualname__ = "BCRegularizedPPO"
-        BCRegularizedPPO = _BCRegularizedPPO
-    return BCRegularizedPPO
-
-
-BCRegularizedPPO: Any = None
-"""The PPO subclass of ``--init`` (see :func:`bc_regularized_ppo_class`); None until
-that function first builds it."""
-
-
 __all__ = [
     "DEMOS_FILE",
     "Dataset",
     "StateTrainer",
     "actor_mean",
-    "bc_regularized_ppo_class",
     "fit",
     "train_imitation",
     "training_seeds",

@@ -230,68 +230,9 @@ def build_network(
     keypoints alone and answers the auxiliary targets of training
     (:func:`privileged_targets`); with ``aux_input`` its answer is also an input of the
     action's MLP (an estimate of the state from the images alone)."""
-    import torch
-    from torch import nn
+    from gym_soarm.rl.pixel_net import PixelNet
 
-    class SpatialSoftmax(nn.Module):
-        """Each channel's soft arg-max: (x, y) in [-1, 1], 2 values per channel."""
-
-        def forward(self, x: torch.Tensor) -> torch.Tensor:
-            n, c, h, w = x.shape
-            p = torch.softmax(x.flatten(2), -1).view(n, c, h, w)
-            ys = torch.linspace(-1.0, 1.0, h, device=x.device)
-            xs = torch.linspace(-1.0, 1.0, w, device=x.device)
-            return torch.cat([(p.sum(2) * xs).sum(2), (p.sum(3) * ys).sum(2)], 1)
-
-    def encoder() -> nn.Module:
-        c1, c2, c3, c4 = channels
-        pool = [nn.AvgPool2d(downsample)] if downsample > 1 else []
-        return nn.Sequential(
-            *pool,
-            nn.Conv2d(3, c1, 5, stride=2, padding=2),
-            nn.ReLU(),
-            nn.Conv2d(c1, c2, 3, stride=2, padding=1),
-            nn.ReLU(),
-            nn.Conv2d(c2, c3, 3, padding=1),
-            nn.ReLU(),
-            nn.Conv2d(c3, c4, 3, padding=1),
-            SpatialSoftmax(),
-        )
-
-    class PixelNet(nn.Module):
-        def __init__(self) -> None:
-            super().__init__()
-            self.cameras = tuple(cameras)
-            self.encoders = nn.ModuleDict({camera: encoder() for camera in self.cameras})
-            layers: list[nn.Module] = []
-            width = 2 * channels[-1] * len(self.cameras) + pos_dim + (aux_dim if aux_input else 0)
-            for units in hidden:
-                layers += [nn.Linear(width, units), nn.ReLU()]
-                width = units
-            layers.append(nn.Linear(width, act_dim))
-            self.head = nn.Sequential(*layers)
-            keypoints = 2 * channels[-1] * len(self.cameras)
-            self.aux = (
-                nn.Sequential(nn.Linear(keypoints, 128), nn.ReLU(), nn.Linear(128, aux_dim))
-                if aux_dim
-                else None
-            )
-
-        def encode(self, images: dict[str, torch.Tensor], pooled: bool = False) -> torch.Tensor:
-            """The keypoints of every camera; ``pooled``: the images are already averaged
-            down by ``downsample`` (training pools its data once)."""
-            skip = 1 if pooled and downsample > 1 else 0
-            return torch.cat([self.encoders[c][skip:](images[c] - 0.5) for c in self.cameras], 1)
-
-        def act_from(self, keypoints: torch.Tensor, proprio: torch.Tensor) -> torch.Tensor:
-            if aux_input:
-                return self.head(torch.cat([keypoints, self.aux(keypoints), proprio], 1))
-            return self.head(torch.cat([keypoints, proprio], 1))
-
-        def forward(self, images: dict[str, torch.Tensor], proprio: torch.Tensor) -> torch.Tensor:
-            return self.act_from(self.encode(images), proprio)
-
-    return PixelNet()
+    return PixelNet(cameras, act_dim, channels, hidden, pos_dim, downsample, aux_dim, aux_input)
 
 
 def random_shift(images: Any, pad: int, generator: Any) -> Any:

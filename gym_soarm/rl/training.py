@@ -16,7 +16,7 @@ task, one seed) and writes into its output folder:
 DAgger folder of :mod:`gym_soarm.rl.imitation`, or another PPO run) on the same task and
 observation layout: its weights, its observation statistics, a low exploration noise
 and a behaviour-cloning term on the actor against ``DIR``'s ``demos.npz``
-(:func:`gym_soarm.rl.imitation.bc_regularized_ppo_class`; the recipe's ``init`` keys).
+(:class:`gym_soarm.rl.bc_ppo.BCRegularizedPPO`; the recipe's ``init`` keys).
 """
 
 from __future__ import annotations
@@ -213,13 +213,14 @@ def _check_init(
 
 
 def _ppo_from(source: dict[str, Any], venv: Any, seed: int, settings: dict[str, Any]) -> Any:
-    """A :class:`~gym_soarm.rl.imitation.BCRegularizedPPO` with the weights, observation
+    """A :class:`~gym_soarm.rl.bc_ppo.BCRegularizedPPO` with the weights, observation
     statistics and demonstrations of the ``--init`` folder."""
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from gym_soarm.rl.imitation import Dataset, bc_regularized_ppo_class
+    from gym_soarm.rl.bc_ppo import BCRegularizedPPO
+    from gym_soarm.rl.imitation import Dataset
 
     folder: Path = source["_folder"]
     pretrained = PPO.load(folder / MODEL_FILE, device="cpu")
@@ -230,7 +231,7 @@ def _ppo_from(source: dict[str, Any], venv: Any, seed: int, settings: dict[str, 
             venv.obs_rms = pickle.load(stream).obs_rms.copy()
     algo_kwargs = dict(settings["algo"])
     algo_kwargs["policy_kwargs"] = dict(pretrained.policy_kwargs)
-    model = bc_regularized_ppo_class()("MlpPolicy", venv, seed=seed, device="cpu", **algo_kwargs)
+    model = BCRegularizedPPO("MlpPolicy", venv, seed=seed, device="cpu", **algo_kwargs)
     model.policy.load_state_dict(pretrained.policy.state_dict())
     init = settings["init"]
     with torch.no_grad():
@@ -299,27 +300,12 @@ def train(
         ImportError: Stable-Baselines3 is not installed (names the extra).
     """
     spec = get_task(task)  # ValueError naming the registered tasks
-    if vector_env is not None and vec_env is not None:
-        raise ValueError(
-            f"pass vector_env ({vector_env!r}) or the older vec_env ({vec_env!r}), not both."
-        )
-    if vector_env is not None or device != "cpu":
-        vector_env = check_choice("vector_env", vector_env or "batched", VECTOR_ENVS)
-        if algo == "ppo" and vector_env in RSL_VECTOR_ENVS:
-            return _train_rsl(
-                spec, out, seed, steps, eval_every, eval_episodes, hyperparams, init, env,
-                vector_env, device,
-            )  # fmt: skip
-        if device != "cpu":
-            raise ValueError(
-                f"device {device!r} applies to PPO on vector_env 'batched' or 'warp' "
-                f"(RSL-RL); got --algo {algo} on {vector_env!r}. Drop --device."
-            )
-        if vector_env == "warp":
-            raise ValueError(
-                f"vector_env 'warp' trains PPO (RSL-RL) only; got --algo {algo}. "
-                "Pass --algo ppo, or --vector-env batched."
-            )
+    vector_env = _check_vector_env(algo, vector_env, vec_env, device)
+    if algo == "ppo" and vector_env in RSL_VECTOR_ENVS:
+        return _train_rsl(
+            spec, out, seed, steps, eval_every, eval_episodes, hyperparams, init, env,
+            vector_env, device,
+        )  # fmt: skip
     settings = _checked_settings(algo, spec, env, hyperparams, vec_env, init)
     if vector_env is not None:
         settings["vec_env"], settings["vector_env"] = "native", vector_env
@@ -335,13 +321,7 @@ def train(
         raise ValueError(f"out must be a folder; {str(out_path)!r} is a file. Pass a new folder.")
     require_sb3()
     pyplot()  # imported before training, never in the middle of it
-    if progress_bar and importlib.util.find_spec("rich") is None:
-        warnings.warn(
-            "the progress bar needs rich (pip install rich, or the rl extra); training without it.",
-            UserWarning,
-            stacklevel=2,
-        )
-        progress_bar = False
+    progress_bar = _progress_bar(progress_bar)
     import torch
 
     # Small networks: one thread is as fast, and several threads slow down badly
@@ -358,6 +338,45 @@ def train(
     finally:
         venv.close()
     return folder.result(model.num_timesteps, run.last_rate)
+
+
+def _check_vector_env(
+    algo: str, vector_env: str | None, vec_env: str | None, device: str
+) -> str | None:
+    """``vector_env`` checked (None: neither it nor a device was given): PPO on batched or
+    warp trains with RSL-RL, the rest with Stable-Baselines3."""
+    if vector_env is not None and vec_env is not None:
+        raise ValueError(
+            f"pass vector_env ({vector_env!r}) or the older vec_env ({vec_env!r}), not both."
+        )
+    if vector_env is None and device == "cpu":
+        return None
+    vector_env = check_choice("vector_env", vector_env or "batched", VECTOR_ENVS)
+    if algo == "ppo" and vector_env in RSL_VECTOR_ENVS:
+        return vector_env
+    if device != "cpu":
+        raise ValueError(
+            f"device {device!r} applies to PPO on vector_env 'batched' or 'warp' "
+            f"(RSL-RL); got --algo {algo} on {vector_env!r}. Drop --device."
+        )
+    if vector_env == "warp":
+        raise ValueError(
+            f"vector_env 'warp' trains PPO (RSL-RL) only; got --algo {algo}. "
+            "Pass --algo ppo, or --vector-env batched."
+        )
+    return vector_env
+
+
+def _progress_bar(wanted: bool) -> bool:
+    """Whether SB3's progress bar can show (a warning when it was wanted and cannot)."""
+    if wanted and importlib.util.find_spec("rich") is None:
+        warnings.warn(
+            "the progress bar needs rich (pip install rich, or the rl extra); training without it.",
+            UserWarning,
+            stacklevel=3,
+        )
+        return False
+    return wanted
 
 
 def _start_folder(
