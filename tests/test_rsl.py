@@ -226,3 +226,34 @@ def test_ppo_on_rsl_rl_starts_from_a_bc_folder_acting_as_it_did(tmp_path):
         torch.testing.assert_close(after[name], before[name], rtol=0, atol=0)
     assert not torch.equal(after["mlp.0.weight"], before["mlp.0.weight"])
     assert read_settings(more)["recipe"]["algo"]["hidden_dims"] == [32, 16]
+
+
+def test_ppo_from_a_bc_folder_keeps_cloning_its_demonstrations(tmp_path):
+    """After the critic's warm-up, each PPO update is followed by behaviour cloning on the
+    folder's demonstrations, with a weight that decays."""
+    from gym_soarm.rl.imitation import DEMOS_FILE, Dataset
+    from gym_soarm.rl.rsl import RslTrainer
+    from gym_soarm.rl.runs import RunFolder
+    from gym_soarm.rl.training import _check_rsl_init
+    from gym_soarm.tasks import get_task
+
+    bc = tmp_path / "bc"
+    hyperparams = {"demos": 2, "epochs": 2, "policy_kwargs": {"net_arch": [32, 16]}}
+    train_imitation("bc", "reach", bc, seed=1, eval_episodes=1, hyperparams=hyperparams)
+    settings = rsl_recipe("ReachTarget-v0")
+    settings["algo"].update(SMOKE)
+    settings.update(vector_env="batched", device="cpu", library=RSL_LIBRARY)
+    settings["init"].update(critic_warmup=1, bc_coef=0.5, bc_decay=0.5)
+    _check_rsl_init(bc, "ReachTarget-v0", settings)
+    folder = RunFolder(tmp_path / "rsl", "test", ("env_steps",)).prepare()
+    trainer = RslTrainer(get_task("reach"), folder, 0, settings, "cpu", bc)
+    try:
+        alg = trainer.runner.alg
+        demos = Dataset.load(bc / DEMOS_FILE)
+        assert alg.demo_obs.shape == demos.obs.shape and alg.bc_coef == 0.5
+        trainer.warm_critic(1)
+        assert alg.bc_coef == 0.5  # the warm-up leaves the actor and the term alone
+        trainer.iterate(2)
+        assert alg.bc_coef == 0.125  # two updates, each with its cloning steps
+    finally:
+        trainer.close()

@@ -355,7 +355,13 @@ RSL_HYPERPARAMS: dict[str, dict[str, Any]] = {
             "obs_normalization": True,
             "init_noise_std": 1.0,
         },
-        "init": {"noise_std": 0.05, "critic_warmup": 10},
+        "init": {
+            "noise_std": 0.05,
+            "critic_warmup": 10,
+            "bc_coef": 1.0,
+            "bc_decay": 0.995,
+            "bc_batch_size": 256,
+        },
     },
     REACH: {"steps": 2_400_000, "eval_every": 50_000},
     LIFT: {"steps": 6_000_000, "eval_every": 250_000},
@@ -368,8 +374,10 @@ rate to keep the policy's KL near ``desired_kl``) and the actor's and critic's M
 (``hidden_dims``, ``activation``, ``obs_normalization``, ``init_noise_std``: the Gaussian's
 first standard deviation, in normalised action units). The ``init`` keys apply to ``--init``
 with a BC, DAgger or SB3 PPO folder (:mod:`gym_soarm.rl.rsl_init`): ``noise_std`` (the
-Gaussian's first standard deviation) and ``critic_warmup`` (iterations in which only the
-critic learns)."""
+Gaussian's first standard deviation), ``critic_warmup`` (iterations in which only the
+critic learns) and the behaviour-cloning term on the folder's demonstrations after each
+update (:mod:`gym_soarm.rl.rsl_bc`: ``bc_coef``, multiplied by ``bc_decay`` per update,
+minibatches of ``bc_batch_size``)."""
 
 
 def rsl_recipe(task: str) -> dict[str, Any]:

@@ -32,7 +32,7 @@ import numpy as np
 
 from gym_soarm.rl.curves import CURVE_FIELDS, TrainResult
 from gym_soarm.rl.evaluation import POLICY_FORMAT, SETTINGS_FILE, score
-from gym_soarm.rl.rsl_init import freeze_normalizer, load_sb3_actor, read_sb3_actor
+from gym_soarm.rl.rsl_init import freeze_normalizer, start_from_sb3
 from gym_soarm.rl.rsl_policy import (
     OBS_GROUP,
     RSL_LIBRARY,
@@ -179,12 +179,17 @@ class RslTrainer:
             device, seed,
         )  # fmt: skip
         config = runner_config(settings["algo"])
+        from_sb3 = init is not None and not (init / RSL_MODEL_FILE).is_file()
+        if from_sb3:  # a BC, DAgger or PPO folder of Stable-Baselines3
+            from gym_soarm.rl.rsl_bc import BCRegularizedPPO
+
+            config["algorithm"]["class_name"] = BCRegularizedPPO
         self.runner = OnPolicyRunner(self.env, config, log_dir=None, device=device)
         self.critic_warmup = 0  # iterations in which only the critic learns
-        if init is not None and (init / RSL_MODEL_FILE).is_file():
+        if init is not None and not from_sb3:
             self.runner.load(str(init / RSL_MODEL_FILE), map_location=device)
-        elif init is not None:  # a BC, DAgger or PPO folder of Stable-Baselines3
-            load_sb3_actor(self.runner.alg, read_sb3_actor(init), settings["init"]["noise_std"])
+        elif from_sb3:
+            start_from_sb3(self.runner.alg, init, settings["init"])
             self.critic_warmup = int(settings["init"]["critic_warmup"])
         if settings.get("frozen_actor_normalizer"):
             freeze_normalizer(self.runner.alg.actor)

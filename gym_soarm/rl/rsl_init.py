@@ -17,15 +17,19 @@ policy does:
   parameters frozen) before the actor moves: a fresh critic's advantages would otherwise
   pull a good actor anywhere;
 * the Gaussian's standard deviation starts at ``noise_std`` (normalised action units),
-  low, so that the first rollouts are the policy's own.
+  low, so that the first rollouts are the policy's own;
+* each PPO update is followed by gradient steps of behaviour cloning on the folder's
+  demonstrations, with a weight that decays (:mod:`gym_soarm.rl.rsl_bc`): plain PPO
+  unlearns the pretrained actor.
 
 The recipe's ``init`` keys (:data:`gym_soarm.rl.hyperparams.RSL_HYPERPARAMS`) give
-``noise_std`` and ``critic_warmup``.
+``noise_std``, ``critic_warmup``, ``bc_coef``, ``bc_decay`` and ``bc_batch_size``.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import logging
 import pickle
 from pathlib import Path
 from typing import Any
@@ -33,6 +37,8 @@ from typing import Any
 import numpy as np
 
 from gym_soarm.rl.evaluation import MODEL_FILE, NORMALIZE_FILE
+
+logger = logging.getLogger(__name__)
 
 _ACTIVATIONS = {"Tanh": "tanh", "ReLU": "relu"}
 """RSL-RL's names of the activations an SB3 ``MlpPolicy`` of the package may have."""
@@ -128,6 +134,23 @@ def load_sb3_actor(alg: Any, source: Sb3Actor, noise_std: float) -> None:
     freeze_normalizer(actor)
 
 
+def start_from_sb3(alg: Any, folder: Path, init: dict[str, Any]) -> None:
+    """Start RSL-RL's PPO ``alg`` (a :class:`gym_soarm.rl.rsl_bc.BCRegularizedPPO`) from the
+    SB3 folder ``folder``: its actor (:func:`load_sb3_actor`) and, where the folder kept
+    them, its demonstrations for the behaviour-cloning term (the recipe's ``init`` keys:
+    ``noise_std``, ``bc_coef``, ``bc_decay``, ``bc_batch_size``)."""
+    from gym_soarm.rl.imitation import DEMOS_FILE, Dataset
+
+    load_sb3_actor(alg, read_sb3_actor(folder), init["noise_std"])
+    if not (folder / DEMOS_FILE).is_file():
+        logger.warning("--init %s has no demonstrations: PPO without the BC term", folder)
+        return
+    demos = Dataset.load(folder / DEMOS_FILE)
+    alg.set_demonstrations(
+        demos.obs, demos.actions, init["bc_coef"], init["bc_decay"], init["bc_batch_size"]
+    )
+
+
 def set_normalizer(normalizer: Any, mean: np.ndarray, std: np.ndarray, count: float) -> None:
     """Set an RSL-RL ``EmpiricalNormalization``'s statistics (``count``: how many samples
     they stand for against the ones it learns next)."""
@@ -145,4 +168,11 @@ def freeze_normalizer(actor: Any) -> None:
     actor.obs_normalizer.until = 0
 
 
-__all__ = ["Sb3Actor", "freeze_normalizer", "load_sb3_actor", "read_sb3_actor", "set_normalizer"]
+__all__ = [
+    "Sb3Actor",
+    "freeze_normalizer",
+    "load_sb3_actor",
+    "read_sb3_actor",
+    "set_normalizer",
+    "start_from_sb3",
+]
