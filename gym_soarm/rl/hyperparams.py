@@ -359,7 +359,7 @@ RSL_HYPERPARAMS: dict[str, dict[str, Any]] = {
             "noise_std": 0.05,
             "critic_warmup": 10,
             "bc_coef": 1.0,
-            "bc_decay": 0.995,
+            "bc_decay": 0.999,
             "bc_batch_size": 256,
         },
     },
