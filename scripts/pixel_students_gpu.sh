@@ -86,3 +86,7 @@ print(json.dumps(summary, indent=1))
 PY
 cat "$OUT/pixel_gpu_summary.json"
 tar czf "$OUT/pixel_runs.tgz" -C "$RUNS" .
+
+# ACT on pixels with LeRobot itself (docs/lerobot.md, "ACT on pixels"): it needs the Python
+# 3.12 environment with LeRobot 0.6.1 (not this script's $PY), so it stays commented out:
+# DEVICE=cuda NUM_WORKERS=12 WORKERS=8 OUT="$OUT/act_pixels" bash scripts/act_pixels.sh
