@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.sim.arrays import SimArrays
+from gym_soarm.sim.arrays import SCALARS, SimArrays, in_namespace, to_numpy
 from gym_soarm.sim.backends import Backend
 from gym_soarm.tasks.base import Task
 from gym_soarm.tasks.state_observation import StateObservation
@@ -50,6 +50,9 @@ class StepResult:
     success: Any
     terms: dict[str, Any]
     reward: Any
+    host_success: Any
+    """``success`` on the host (NumPy; a bool for one environment): what the episode
+    bookkeeping reads, copied from the device with the divergences in one transfer."""
 
 
 class StepCore:
@@ -114,11 +117,23 @@ class StepCore:
             self.backend.set_targets(ids, targets)
         reasons = self.backend.step(ids, self.substeps)
         sim = self.arrays()
-        diverged = self.divergence(sim, reasons, ids)
-        if self._unbatched and diverged:
-            return StepResult(sim, diverged, {}, False, {}, 0.0)
+        if self._unbatched:
+            diverged = self.divergence(sim, reasons, ids)
+            if diverged:
+                return StepResult(sim, diverged, {}, False, {}, 0.0, False)
+            evaluation, success, terms, reward = self.score(sim, steps, limit, sparse)
+            return StepResult(sim, diverged, evaluation, success, terms, reward, success)
         evaluation, success, terms, reward = self.score(sim, steps, limit, sparse)
-        return StepResult(sim, diverged, evaluation, success, terms, reward)
+        xp = sim.xp
+        overflow = self.backend.overflowed()
+        if overflow is None:
+            overflow = xp.zeros_like(success)
+        # The step's one transfer from the device: what the episode bookkeeping reads.
+        unsound, overflow, success_host = to_numpy(
+            xp.stack([self.unsound(sim) | overflow, overflow, success])
+        )
+        diverged = self._reasons(sim, reasons, unsound, overflow, ids)
+        return StepResult(sim, diverged, evaluation, success, terms, reward, success_host)
 
     def divergence(
         self, sim: SimArrays, reasons: dict[int, str], ids: np.ndarray | None = None
@@ -127,21 +142,44 @@ class StepCore:
 
         Besides MuJoCo's own errors and warnings (``reasons``, the backend's), an object
         thrown beyond :data:`~gym_soarm.constants.POSITION_BOUND_M`, a joint turned past
-        +-pi or NaN/inf in the state can only come from an exploding simulation.
+        +-pi or NaN/inf in the state can only come from an exploding simulation; so can a
+        simulation that ran past a fixed buffer (:meth:`Backend.overflowed
+        <gym_soarm.sim.backends.Backend.overflowed>`).
         """
         if self._unbatched:
             if reasons:
                 return dict(reasons)
             reason = self._unsound(sim, None)
             return {} if reason is None else {0: reason}
-        unsound = ~np.asarray(sim.state_is_finite())
-        far = np.zeros(sim.n)
+        overflow = self.backend.overflowed()
+        unsound = to_numpy(self.unsound(sim))
+        overflow = np.zeros_like(unsound) if overflow is None else to_numpy(overflow)
+        return self._reasons(sim, reasons, unsound | overflow, overflow, ids)
+
+    def unsound(self, sim: SimArrays) -> Any:
+        """``(n,)`` bool, where the arrays are: NaN/inf in the state, an object thrown
+        beyond :data:`~gym_soarm.constants.POSITION_BOUND_M`, a joint turned past +-pi."""
+        xp = sim.xp
+        unsound = ~sim.state_is_finite()
         for name in sim.index.objects:
-            far = np.maximum(far, np.abs(sim.object_position(name)).max(axis=1))
-        turned = (np.abs(sim.joint_angles()) > math.pi).any(axis=1)
+            far = xp.max(xp.abs(sim.object_position(name)), axis=1)
+            unsound = unsound | (far > constants.POSITION_BOUND_M)
+        return unsound | xp.any(xp.abs(sim.joint_angles()) > math.pi, axis=1)
+
+    def _reasons(
+        self,
+        sim: SimArrays,
+        reasons: dict[int, str],
+        unsound: np.ndarray,
+        overflow: np.ndarray,
+        ids: np.ndarray | None,
+    ) -> dict[int, str]:
+        """Why each simulation of ``unsound`` (host masks) is, among those of ``ids``."""
         found = dict(reasons)
-        for i in np.flatnonzero(unsound | (far > constants.POSITION_BOUND_M) | turned).tolist():
-            found.setdefault(i, self._unsound(sim, i))
+        for i in np.flatnonzero(unsound).tolist():
+            if overflow[i]:
+                found.setdefault(i, self.backend.overflow_reason(i))
+            found.setdefault(i, self._unsound(sim, i) or "the simulation is unsound")
         if ids is not None and len(ids) < sim.n:
             stepped = set(ids.tolist())
             found = {i: r for i, r in found.items() if i in stepped}
@@ -196,14 +234,17 @@ class StepCore:
             else:
                 reward = float(task.weights.total(terms))
             return evaluation, bool(success), terms, reward
-        success = np.asarray(success, dtype=np.bool_)
-        sparse = np.asarray(sparse, dtype=np.bool_)
-        if sparse.all():
-            reward = success.astype(np.float64)
+        xp = sim.xp
+        success = xp.astype(success, xp.bool)
+        dtype = xp.float64 if xp is np else sim.qpos.dtype  # float32 on MuJoCo Warp
+        if np.all(sparse):
+            reward = xp.astype(success, dtype)
         else:
-            bonus = 1.0 + np.maximum(limit - np.asarray(steps), 0)
-            dense = np.asarray(task.weights.total(terms), dtype=np.float64)
-            reward = np.where(sparse, success.astype(np.float64), np.where(success, bonus, dense))
+            steps, sparse = (in_namespace(xp, values, success) for values in (steps, sparse))
+            bonus = 1.0 + xp.maximum(limit - steps, 0)
+            dense = xp.astype(task.weights.total(terms), dtype)
+            reward = xp.where(sparse, xp.astype(success, dtype), xp.where(success, bonus, dense))
+            reward = xp.astype(reward, dtype)
         return evaluation, success, terms, reward
 
     # --- what the step reports -----------------------------------------------------------
@@ -213,7 +254,8 @@ class StepCore:
 
     def environment_state(self, sim: SimArrays) -> Any:
         """The task's ``environment_state`` (``(..., size)``)."""
-        return np.asarray(self.task.batch_state(sim))
+        state = self.task.batch_state(sim)
+        return np.asarray(state) if sim.xp in (np, SCALARS) else state
 
     def info_values(self, sim: SimArrays, evaluation: dict[str, Any]) -> tuple[dict[str, Any], Any]:
         """The task's own info values and the ``gripperframe`` position: unbatched values

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 import mujoco
 import numpy as np
 from array_api_compat import array_namespace
+from array_api_compat import device as array_device
 
 from gym_soarm import constants
 from gym_soarm.sim.scene import contact_sensor_name
@@ -125,6 +126,24 @@ def namespace(*arrays: Array) -> Any:
     if _NUMPY_IS_STANDARD and type(first) is np.ndarray and numpy_only:
         return np
     return array_namespace(*arrays)
+
+
+def to_numpy(values: Array) -> np.ndarray:
+    """``values`` as a NumPy array on the host: NumPy arrays as they are, a torch tensor
+    copied from its device (on a GPU this waits for it: a host synchronisation)."""
+    if isinstance(values, np.ndarray):
+        return values
+    if hasattr(values, "detach"):  # torch
+        return values.detach().cpu().numpy()
+    return np.asarray(values)
+
+
+def in_namespace(xp: Any, values: Any, like: Array) -> Array:
+    """``values`` (host NumPy values) as an array of ``xp`` on the device of ``like``
+    (NumPy's values as they are)."""
+    if xp is np or xp is SCALARS:
+        return values
+    return xp.asarray(values, device=array_device(like))
 
 
 def _cached(method: Any) -> Any:
@@ -465,8 +484,10 @@ __all__ = [
     "SCALARS",
     "SimArrays",
     "SimIndex",
+    "in_namespace",
     "item",
     "namespace",
     "norm",
     "per_env",
+    "to_numpy",
 ]

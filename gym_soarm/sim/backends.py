@@ -11,10 +11,13 @@ and closes:
   batch axis (the tasks' unbatched fast path);
 * :class:`BatchBackend`: N simulations in one ``mujoco.batch.Batch`` (MuJoCo's thread
   pool, the GIL released, bit for bit what stepping each alone gives);
-* :class:`~gym_soarm.sim.warp_backend.WarpBackend`: N worlds of MuJoCo Warp (a GPU).
+* :class:`~gym_soarm.sim.warp_backend.WarpBackend`: N worlds of MuJoCo Warp (a GPU), its
+  arrays torch tensors on the device.
 
 A backend reports which simulations MuJoCo itself found unsound (a raised error, a new
-warning); the core adds its own checks (NaN, thrown objects, turned joints).
+warning) and, where its buffers are fixed (MuJoCo Warp), which ran past them, as a mask
+where its arrays are (:meth:`Backend.overflowed`); the core adds its own checks (NaN,
+thrown objects, turned joints).
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 _STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
 _WARNINGS: tuple[str, ...] = tuple(mujoco.mjtWarning.__members__)
 _SOUND: dict[int, str] = {}  # what a sound step reports (never written to)
+_NO_OVERFLOW = "C MuJoCo grows its buffers: no simulation overflows"
 
 
 def write_targets(
@@ -74,6 +78,16 @@ class Backend(Protocol):
 
     def arrays(self, episode: dict[str, Any]) -> SimArrays:
         """Live arrays of every simulation, with the tasks' per-episode values."""
+        ...
+
+    def overflowed(self) -> Any:
+        """``(n,)`` bool, where the arrays are: the simulations whose last step ran past
+        a fixed buffer (MuJoCo Warp's contacts and constraint rows); None where the
+        backend has none (C MuJoCo grows its buffers, and warns)."""
+        ...
+
+    def overflow_reason(self, i: int) -> str:
+        """Why simulation ``i``, marked by :meth:`overflowed`, ran past a buffer."""
         ...
 
     def load(self, i: int, physics: SoArmPhysics) -> None:
@@ -122,6 +136,13 @@ class MjDataBackend:
 
     def arrays(self, episode: dict[str, Any]) -> SimArrays:
         return SimArrays.of_physics(self.physics, episode)
+
+    def overflowed(self) -> None:
+        """None: MuJoCo grows its buffers (and warns)."""
+        return None
+
+    def overflow_reason(self, i: int) -> str:
+        return _NO_OVERFLOW
 
     def load(self, i: int, physics: SoArmPhysics) -> None:
         """Copy ``physics`` (a simulation of the same scene) into this one: all of its
@@ -201,6 +222,13 @@ class BatchBackend:
 
     def arrays(self, episode: dict[str, Any]) -> SimArrays:
         return SimArrays(self.index, self._fields, episode)
+
+    def overflowed(self) -> None:
+        """None: MuJoCo grows its buffers (and warns)."""
+        return None
+
+    def overflow_reason(self, i: int) -> str:
+        return _NO_OVERFLOW
 
     def load(self, i: int, physics: SoArmPhysics) -> None:
         """Copy ``physics`` (an environment's own simulation) into simulation ``i``."""

@@ -7,18 +7,34 @@ on Warp's CPU device (``device="cpu"``, slow but exact enough to test with).
 
 * Warp computes in float32: a world follows C MuJoCo's float64 simulation to about 1e-5
   over a control step, not bit for bit.
+* The arrays the tasks read (:data:`~gym_soarm.sim.arrays.ARRAY_FIELDS`) are torch
+  tensors that share the Warp arrays' memory (``warp.to_torch``, float32, on the
+  device), taken once when the backend is built: MuJoCo Warp writes its arrays in place
+  (a step never rebinds them), so the tasks' array code scores the worlds where they
+  are, without a copy.
 * The worlds share one model; what a reset writes into an environment's model (the pose
   of a fixture: ``body_pos``, ``body_quat``) is batched per world. A setting whose
   resets change other model fields (``physics_randomization``, fitted ``dynamics``,
   the STS3215 force limit) is refused by the vector env, naming it.
-* Each world's contacts and constraint rows are bounded (:data:`CONTACTS_PER_WORLD`,
-  :data:`CONSTRAINTS_PER_WORLD`, sized from the scene); a step that runs past the bound
-  truncates every world that stepped with a warning, never a silent NaN.
-* The arrays the tasks read are host copies (NumPy) of the Warp arrays, made once a
-  step; on Warp's CPU device they cost a copy of a few kB.
-* On a GPU a control step (its substeps and the closing position stage) is captured
-  once as a CUDA graph and replayed: one launch a step instead of a few hundred kernel
-  launches from Python.
+* A reset copies only the rows of the worlds that reset into the device's state and
+  their fixtures' poses into the model (indexed assignments into torch views of
+  ``qpos``, ``qvel`` ... and ``body_pos``, ``body_quat``), then computes the positions
+  stage.
+* Each world is held to its own budget of contacts and constraint rows
+  (:data:`CONTACTS_PER_WORLD`, :data:`CONSTRAINTS_PER_WORLD`), checked on the device
+  after every physics step: MuJoCo Warp's per-world overflow flags (``Data.overflow``:
+  constraint rows past ``njmax`` ...) and each world's contacts, counted by a kernel of
+  this package (:mod:`gym_soarm.sim.warp_kernels`) from the contacts' ``worldid``.
+  :meth:`WarpBackend.overflowed` answers the worlds that ran past a budget as a device
+  mask; the vector env truncates those worlds only, with a warning naming each. The
+  shared contact pool holds :data:`CONTACT_POOL` times every world's budget, so one
+  world past its budget cannot drop another's contacts; were the pool itself to
+  overflow, MuJoCo Warp flags every world (it cannot tell whose contacts it dropped),
+  and every world that stepped is truncated.
+* On a GPU a control step (its substeps, the contact counts and the closing position
+  stage) is captured once as a CUDA graph and replayed: one launch a step instead of a
+  few hundred kernel launches from Python. Torch's stream waits for Warp's after a step
+  (an event, no host synchronisation), and Warp's for torch's after a reset's copies.
 * Warp compiles its kernels on first use (about a minute on two CPU cores) and keeps
   them in its kernel cache (``~/.cache/warp/<version>``, or ``WARP_CACHE_PATH``); later
   processes load them in a second or two.
@@ -39,14 +55,25 @@ from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.sim.randomization import arm_indices
 
 CONTACTS_PER_WORLD = 48
-"""Contacts a world may hold (the scenes hold at most ~20 at rest: jaws, objects, table)."""
+"""Contacts a world may hold (the scenes hold at most ~20 at rest: jaws, objects, table);
+read when a backend is built."""
 CONSTRAINTS_PER_WORLD = 256
-"""Constraint rows a world may hold (pyramidal friction cones: 4 rows a contact)."""
+"""Constraint rows a world may hold (pyramidal friction cones: 4 rows a contact); read
+when a backend is built."""
+CONTACT_POOL = 2
+"""The shared contact pool holds this many times the worlds' budgets together."""
 _STATE_FIELDS = ("qpos", "qvel", "act", "qacc_warmstart", "mocap_pos", "mocap_quat", "time")
 """The ``MjData`` fields that make a world's state (``mj_step`` reads them)."""
+_UNLOADED = ("qpos", "qvel", "qacc", "sensordata", "time")
+"""The fields :meth:`WarpBackend.unload` copies out of a world."""
 WORLD_MODEL_FIELDS: tuple[str, ...] = ("body_pos", "body_quat")
 """The model fields that differ per world (what the tasks' resets place)."""
 DEVICES_HELP = '"cpu", "cuda" or "cuda:N"'
+_POOL_BITS = ("BROADPHASE", "NARROWPHASE", "CCD")
+"""MuJoCo Warp's overflow flags of the shared contact pool (set in every world)."""
+_SOLVER_BITS = ("ITERATIONS", "LS_ITERATIONS")
+"""Flags that drop nothing (the solver's iteration limits, which C MuJoCo reaches
+silently too): not an overflow."""
 
 
 def warp_available() -> bool:
@@ -99,41 +126,71 @@ class WarpBackend:
             fields of :data:`WORLD_MODEL_FIELDS` may differ between them).
         device: a Warp device (:func:`check_device`).
         index: where the scene's parts lie.
+
+    Attributes:
+        torch_device: the torch device of the arrays (``"cpu"``, ``"cuda:0"`` ...).
     """
 
     def __init__(self, models: Sequence[mujoco.MjModel], device: str, index: SimIndex) -> None:
         wp = _import_warp()
         import mujoco_warp as mjw
 
-        self._wp, self._mjw = wp, mjw
+        from gym_soarm.sim import warp_kernels
+
+        self._wp, self._mjw, self._kernels = wp, mjw, warp_kernels
         self.num_envs = n = len(models)
         self.index = index
         self.device = device
+        self.torch_device = wp.device_to_torch(device)
+        self._cuda = wp.get_device(device).is_cuda
         self._models = list(models)
         model = self._models[0]
         self._actuators, _ = arm_indices(model)
+        self.contacts_per_world = CONTACTS_PER_WORLD
+        self.constraints_per_world = CONSTRAINTS_PER_WORLD
         with wp.ScopedDevice(device):
             self._model = mjw.put_model(model, batch_sizes=dict.fromkeys(WORLD_MODEL_FIELDS, n))
             self._data = mjw.make_data(
                 model,
                 nworld=n,
-                nconmax=CONTACTS_PER_WORLD,
-                njmax=CONSTRAINTS_PER_WORLD,
+                naconmax=CONTACT_POOL * self.contacts_per_world * n,
+                njmax=self.constraints_per_world,
             )
+        names = {*ARRAY_FIELDS, *_STATE_FIELDS, "nefc", "overflow"}
+        # Views of MuJoCo Warp's arrays, never rebound: a step writes into them in place.
+        self._views = {name: wp.to_torch(getattr(self._data, name)) for name in names}
         self._ctrl = np.zeros((n, model.nu))
         self._graphs: dict[int, Any] = {}  # nstep -> the CUDA graph of a control step
-        self._host: dict[str, np.ndarray] = {}
-        self._staged: dict[str, np.ndarray] = {}  # loaded states not yet on the device
+        self._counts: dict[int, tuple[Any, list[Any]]] = {}  # nstep -> contact counts
+        self._overflowed: Any = None  # the last step's worlds past a budget (device)
+        self._most: Any = None  # the last step's most contacts of each world (device)
+        self._host: dict[str, np.ndarray] = {}  # host copies of _UNLOADED, until a step
+        self._staged: dict[int, dict[str, np.ndarray]] = {}  # loaded worlds' states
+        self._model_views: dict[str, Any] = {}  # WORLD_MODEL_FIELDS, once set_models ran
+        flags = mjw.OverflowType
+        self._pool_bits = sum(int(getattr(flags, b, 0)) for b in _POOL_BITS)
+        self._dropping = int(flags.ALL) & ~sum(int(getattr(flags, b, 0)) for b in _SOLVER_BITS)
         self.set_models()
-        self._read()
 
     # --- the model ---------------------------------------------------------------------
     def set_models(self) -> None:
-        """Take in what resets wrote into the environments' models (fixture poses) and
-        the states :meth:`load` staged."""
-        for name in WORLD_MODEL_FIELDS:
-            values = np.stack([getattr(m, name) for m in self._models])
-            getattr(self._model, name).assign(values.astype(np.float32))
+        """Take in what resets wrote into the models of the worlds loaded since (fixture
+        poses; every world's the first time) and the states :meth:`load` staged: the
+        rows of those worlds only."""
+        import torch
+
+        worlds = sorted(self._staged) if self._model_views else list(range(self.num_envs))
+        if not self._model_views:
+            model = self._model
+            self._model_views = {
+                n: self._wp.to_torch(getattr(model, n)) for n in WORLD_MODEL_FIELDS
+            }
+        if worlds:
+            rows = torch.as_tensor(worlds, device=self.torch_device)
+            for name, view in self._model_views.items():
+                values = np.stack([getattr(self._models[w], name) for w in worlds])
+                view[rows] = torch.as_tensor(values, dtype=view.dtype).to(self.torch_device)
+            self._warp_waits()
         self._push()
 
     # --- stepping ----------------------------------------------------------------------
@@ -142,107 +199,166 @@ class WarpBackend:
 
     def step(self, ids: np.ndarray | None, nstep: int) -> dict[int, str]:
         """Step every world ``nstep`` times (the worlds outside ``ids`` are those that
-        reset right after, so they step too: one launch for all)."""
+        reset right after, so they step too: one launch for all). The worlds that ran
+        past a budget are reported by :meth:`overflowed`, on the device; nothing here
+        waits for the device."""
         wp = self._wp
         self._push()
+        counts, rows = self._contact_counts(nstep)
         with wp.ScopedDevice(self.device):
             self._data.ctrl.assign(self._ctrl.astype(np.float32))
-            if not wp.get_device(self.device).is_cuda:
-                self._control_step(nstep)
+            if not self._cuda:
+                self._control_step(nstep, rows)
             else:
                 if nstep not in self._graphs:
                     with wp.ScopedCapture() as capture:
-                        self._control_step(nstep)
+                        self._control_step(nstep, rows)
                     self._graphs[nstep] = capture.graph
                 wp.capture_launch(self._graphs[nstep])
-        self._read()
-        reasons: dict[int, str] = {}
-        overflow = self._overflow()
-        if overflow:
-            rows = range(self.num_envs) if ids is None else ids.tolist()
-            for i in rows:
-                reasons[i] = overflow
-        return reasons
+        self._torch_waits()
+        views = self._views
+        self._most = counts.amax(0)
+        self._overflowed = (
+            ((views["overflow"] & self._dropping) != 0)
+            | (self._most > self.contacts_per_world)
+            | (views["nefc"] > self.constraints_per_world)
+        )
+        return {}
 
-    def _control_step(self, nstep: int) -> None:
-        for _ in range(nstep):
-            self._mjw.step(self._model, self._data)
+    def _contact_counts(self, nstep: int) -> tuple[Any, list[Any]]:
+        """The per-world contact counts of a control step of ``nstep`` physics steps, a
+        row after each physics step and the closing stage: their torch view
+        ``(nstep + 1, n)`` and the Warp rows the kernel fills."""
+        if nstep not in self._counts:
+            counts = self._wp.zeros((nstep + 1, self.num_envs), dtype=int, device=self.device)
+            rows = [counts[k] for k in range(nstep + 1)]
+            self._counts[nstep] = (self._wp.to_torch(counts), rows)
+        return self._counts[nstep]
+
+    def _control_step(self, nstep: int, counts: list[Any]) -> None:
+        wp, mjw, data = self._wp, self._mjw, self._data
+        data.overflow.zero_()  # MuJoCo Warp's flags only ever add up: this step's
+        for row in counts:
+            row.zero_()
+        contacts = self._kernels.count_contacts
+        args = (data.nacon, data.naconmax, data.contact.worldid)
+        for k in range(nstep):
+            mjw.step(self._model, data)
+            wp.launch(contacts, dim=data.naconmax, inputs=args, outputs=[counts[k]])
         # Positions, velocities and their sensors of the new state (C MuJoCo's legacy
         # step ends on mj_step1 too): the sites and contacts the tasks read.
-        self._mjw.step1(self._model, self._data)
+        mjw.step1(self._model, data)
+        wp.launch(contacts, dim=data.naconmax, inputs=args, outputs=[counts[nstep]])
 
-    def _overflow(self) -> str | None:
-        """Why the step ran past the contact or constraint budget, or None."""
-        data = self._data
-        contacts = int(data.nacon.numpy()[0])
-        if contacts >= data.naconmax:
-            return (
-                f"the worlds held {contacts} contacts, the budget of {data.naconmax} "
-                f"({CONTACTS_PER_WORLD} a world): contacts beyond it were dropped"
-            )
-        rows = data.nefc.numpy()
-        if rows.size and int(rows.max()) >= data.njmax:
-            return (
-                f"a world held {int(rows.max())} constraint rows, the budget of {data.njmax}: "
-                "rows beyond it were dropped"
-            )
-        return None
+    def _torch_waits(self) -> None:
+        """Order torch's work after what Warp queued (a GPU's streams; an event)."""
+        self._host = {}
+        if self._cuda:
+            import torch
 
-    def _read(self) -> None:
-        """Host copies of the arrays the tasks read (float64, as C MuJoCo's)."""
-        for name in ARRAY_FIELDS:
-            self._host[name] = getattr(self._data, name).numpy().astype(np.float64)
+            stream = torch.cuda.current_stream(self.torch_device)
+            stream.wait_stream(self._wp.stream_to_torch(self.device))
+
+    def _warp_waits(self) -> None:
+        """Order Warp's work after what torch queued (a GPU's streams; an event)."""
+        if self._cuda:
+            wp = self._wp
+            wp.get_stream(self.device).wait_stream(wp.stream_from_torch(self.torch_device))
+
+    def overflowed(self) -> Any:
+        """``(n,)`` bool on the device: the worlds whose last control step ran past a
+        budget (None before the first step)."""
+        return self._overflowed
+
+    def contact_counts(self) -> Any:
+        """``(n,)`` int32 on the device: the most contacts each world held after any
+        physics step of the last control step (None before the first step)."""
+        return self._most
+
+    def overflow_reason(self, i: int) -> str:
+        """Why world ``i`` ran past a budget on the last step (reads its flags: a
+        transfer from the device, for a world already found to overflow)."""
+        flags = int(self._views["overflow"][i])
+        most = int(self._most[i])
+        rows = int(self._views["nefc"][i])
+        why = []
+        if most > self.contacts_per_world:
+            why.append(f"world {i} held {most} contacts, more than its {self.contacts_per_world}")
+        if flags & self._pool_bits:
+            why.append(
+                f"the worlds' contacts ran past the shared pool of {self._data.naconmax} "
+                "(MuJoCo Warp cannot tell whose were dropped)"
+            )
+        if rows > self.constraints_per_world or flags & int(self._mjw.OverflowType.NEFC):
+            why.append(
+                f"world {i} held {rows} constraint rows, more than its "
+                f"{self.constraints_per_world}: rows beyond them were dropped"
+            )
+        other = flags & self._dropping & ~self._pool_bits & ~int(self._mjw.OverflowType.NEFC)
+        if other:
+            why.append(f"MuJoCo Warp flagged {self._mjw.OverflowType(other)!r}")
+        return "; ".join(why) or f"world {i} overflowed"
 
     def arrays(self, episode: dict[str, Any]) -> SimArrays:
-        return SimArrays(self.index, self._host, episode)
+        return SimArrays(self.index, self._views, episode)
 
     # --- one world in and out ----------------------------------------------------------
     def load(self, i: int, physics: SoArmPhysics) -> None:
         """Stage ``physics`` (an environment's own simulation) as world ``i``'s state; the
         staged worlds go to the device together, at :meth:`set_models` or the next step
-        (one copy of each array for a whole reset, not one per world)."""
+        (their rows only, one copy of each field for a whole reset)."""
         data = physics.data.ptr
-        if not self._staged:  # the device's state, into which the loaded worlds go
-            self._staged = {name: getattr(self._data, name).numpy() for name in _STATE_FIELDS}
-        for name in _STATE_FIELDS:
-            if self._staged[name].size:
-                self._staged[name][i] = getattr(data, name)
+        self._staged[i] = {name: np.array(getattr(data, name)) for name in _STATE_FIELDS}
         self._ctrl[i] = data.ctrl
 
     def _push(self) -> None:
-        """The staged states onto the device, and their positions stage computed."""
+        """The staged worlds' rows into the device's state, and the positions stage."""
         if not self._staged:
             return
-        for name, values in self._staged.items():
-            if values.size:
-                getattr(self._data, name).assign(values)
+        import torch
+
+        worlds = sorted(self._staged)
+        rows = torch.as_tensor(worlds, device=self.torch_device)
+        for name in _STATE_FIELDS:
+            view = self._views[name]
+            if view.numel():
+                values = np.stack([self._staged[w][name] for w in worlds])
+                view[rows] = torch.as_tensor(values, dtype=view.dtype).to(self.torch_device)
         self._staged = {}
+        self._warp_waits()
         with self._wp.ScopedDevice(self.device):
             self._mjw.forward(self._model, self._data)
-        self._read()
+        self._torch_waits()
 
     def unload(self, i: int, physics: SoArmPhysics) -> None:
         """Copy world ``i`` into ``physics``: its state, then C MuJoCo's positions and
-        velocities stage on it (the last substep's accelerations and sensors are Warp's)."""
+        velocities stage on it (the last substep's accelerations and sensors are Warp's).
+        The first unload after a step copies the unloaded fields of every world to the
+        host, once."""
+        if not self._host:
+            self._host = {name: self._views[name].cpu().numpy() for name in _UNLOADED}
+        host = self._host
         model, data = physics.model.ptr, physics.data.ptr
-        data.qpos[:] = self._host["qpos"][i]
-        data.qvel[:] = self._host["qvel"][i]
+        data.qpos[:] = host["qpos"][i]
+        data.qvel[:] = host["qvel"][i]
         data.ctrl[:] = self._ctrl[i]
-        data.time = float(self._data.time.numpy()[i])
+        data.time = float(host["time"][i])
         mujoco.mj_step1(model, data)
-        data.qacc[:] = self._host["qacc"][i]
-        data.sensordata[:] = self._host["sensordata"][i]
+        data.qacc[:] = host["qacc"][i]
+        data.sensordata[:] = host["sensordata"][i]
 
     def close(self) -> None:
         """Release the worlds (every reference to the Warp arrays goes)."""
         self._model = self._data = None
-        self._graphs = {}
-        self._host = {}
+        self._graphs, self._counts, self._views, self._host = {}, {}, {}, {}
+        self._model_views = {}
+        self._overflowed = self._most = None
 
 
 __all__ = [
     "CONSTRAINTS_PER_WORLD",
     "CONTACTS_PER_WORLD",
+    "CONTACT_POOL",
     "WORLD_MODEL_FIELDS",
     "WarpBackend",
     "check_device",

@@ -1,4 +1,5 @@
-"""The batched vector env: all N simulations stepped in one ``mujoco.batch`` call.
+"""The batched vector env: all N simulations stepped in one call (``mujoco.batch``, or MuJoCo
+Warp).
 
 ``gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point")`` builds a
 :class:`BatchedVectorEnv` for state observations (``vector_env="auto"``, the default;
@@ -21,8 +22,22 @@
   observations, rewards, terminations, truncations and infos (batched as
   ``SyncVectorEnv`` batches them), in each of the three autoreset modes.
 * A simulation that diverges (a MuJoCo warning or error, NaN, an object thrown off the
-  table) truncates its own episode with a warning naming its index, as a single
-  environment does; the others go on.
+  table, a Warp world past its budget of contacts or constraint rows) truncates its own
+  episode with a warning naming its index, as a single environment does; the others go on.
+* ``physics="warp"`` (``vector_env="warp"``) steps the worlds on MuJoCo Warp
+  (:mod:`gym_soarm.sim.warp_backend`): the tasks then score torch tensors on the device,
+  and the per-episode values the tasks keep live there too.
+* ``array_api`` (:mod:`gym_soarm.vector.views`): ``"numpy"`` (default, the NumPy view)
+  or ``"torch"`` (torch tensors on :attr:`BatchedVectorEnv.device`). The episode
+  bookkeeping (time limits, autoresets, divergences, resets) runs on the host; with the
+  torch view a step reads from the device one ``(3, N)`` boolean array (the worlds that
+  diverged or overflowed, and succeeded: :meth:`StepCore.step
+  <gym_soarm.envs.core.StepCore.step>`) and sends the host's values to it (the servo
+  targets, the step counts, terminations, truncations and ``_key`` masks). Actions
+  given as tensors are copied to the host (the control modes convert them in NumPy);
+  ``environment_state_agent_pos`` in units other than radians converts the joint angles
+  on the host; a divergence's warning, a reset and ``call``/``synced_envs`` read their
+  worlds from the device.
 """
 
 from __future__ import annotations
@@ -38,44 +53,33 @@ from gym_soarm import constants
 from gym_soarm.envs.control import JOINT_DELTA, JOINT_POS, NormalizedControl
 from gym_soarm.envs.core import StepCore
 from gym_soarm.envs.env import SoArmEnv
-from gym_soarm.envs.settings import STATE_OBS_TYPES
-from gym_soarm.sim.arrays import SimArrays
+from gym_soarm.sim.arrays import SimArrays, in_namespace, to_numpy
 from gym_soarm.sim.backends import Backend, BatchBackend
-from gym_soarm.sim.warp_backend import WarpBackend, check_device
+from gym_soarm.sim.warp_backend import WarpBackend
 from gym_soarm.validation import check_choice, check_int
 from gym_soarm.vector.base import SoArmVectorBase, StepReturn
+from gym_soarm.vector.choice import (
+    VECTOR_ENVS,
+    check_batchable,
+    check_numpy_only,
+    check_physics,
+    wants_batched,
+)
 from gym_soarm.vector.common import (
     leaf_value,
     nest,
 )
+from gym_soarm.vector.views import (
+    ARRAY_APIS,
+    FLOAT,
+    TorchView,
+    column,
+    make_view,
+    put,
+    row_of,
+    zeros_where,
+)
 from gym_soarm.vector.workers import cpu_count
-
-
-def _row(value: Any, i: int) -> Any:
-    """Environment ``i``'s value of one batched info entry, as a single env gives it."""
-    if isinstance(value, dict):
-        return {k: _row(v, i) for k, v in value.items() if not k.startswith("_")}
-    entry = value[i]
-    if value.dtype == np.bool_:
-        return bool(entry)
-    if value.dtype == object:
-        return entry
-    if value.ndim == 1:
-        return int(entry) if value.dtype.kind in "iu" else float(entry)
-    return entry.copy()
-
-
-def _column(values: Any, n: int) -> np.ndarray:
-    """One info entry for the batch as ``SyncVectorEnv`` batches it: an array."""
-    if isinstance(values, list):
-        kinds = set(map(type, values))
-        if len(kinds) == 1 and kinds <= {bool, int, float}:
-            return np.array(values, dtype=kinds.pop())
-        out = np.empty(n, dtype=object)
-        out[:] = values
-        return out
-    array = np.asarray(values)
-    return array.astype(np.float64) if array.dtype.kind == "f" else array
 
 
 class BatchedVectorEnv(SoArmVectorBase):
@@ -100,11 +104,15 @@ class BatchedVectorEnv(SoArmVectorBase):
             :mod:`gym_soarm.sim.warp_backend`).
         device: with ``physics="warp"``, the Warp device: ``"cuda"`` (default),
             ``"cuda:N"`` or ``"cpu"``.
+        array_api: the arrays it returns (:mod:`gym_soarm.vector.views`): ``"numpy"``
+            (default: the NumPy view, NumPy arrays on the host as ``SyncVectorEnv``
+            batches them) or ``"torch"`` (torch tensors on :attr:`device`: the Warp
+            device, or the CPU for ``physics="mujoco"``).
         **env_kwargs: the arguments of :class:`~gym_soarm.envs.env.SoArmEnv`.
 
     Raises:
-        ValueError: a bad ``num_envs``, ``num_threads``, ``autoreset_mode`` or
-            environment argument, before anything is built.
+        ValueError: a bad ``num_envs``, ``num_threads``, ``autoreset_mode``,
+            ``array_api`` or environment argument, before anything is built.
     """
 
     def __init__(
@@ -116,19 +124,15 @@ class BatchedVectorEnv(SoArmVectorBase):
         copy: bool = True,
         physics: str = "mujoco",
         device: str | None = None,
+        array_api: str = "numpy",
         **env_kwargs: Any,
     ) -> None:
         self.closed = True
         num_envs = self._check_arguments(num_envs, max_episode_steps, autoreset_mode, copy)
-        check_choice("physics", physics, PHYSICS_BACKENDS)
-        if physics == "mujoco" and device is not None:
-            raise ValueError(
-                f"device applies to physics='warp' (MuJoCo Warp); got device={device!r} with "
-                "physics='mujoco'. Remove device or pass vector_env='warp'."
-            )
-        if physics == "warp":
-            device = check_device("cuda" if device is None else device)
-            _check_warp_settings(env_kwargs)
+        self.device = check_physics(physics, device, array_api, env_kwargs)
+        """Where the simulations' arrays live (torch's name of the Warp device)."""
+        self._out = make_view(array_api, self.device)
+        self.array_api = array_api
         if num_threads is None:
             num_threads = cpu_count()
         self.num_threads = min(check_int("num_threads", num_threads, 1), num_envs)
@@ -142,24 +146,13 @@ class BatchedVectorEnv(SoArmVectorBase):
                 env.close()
             raise
         self._take_spaces(first)
-        self._obs_arrays = [np.zeros((num_envs, *shape), dtype) for _, shape, dtype in self._leaves]
+        self._obs_arrays = [self._out.zeros((num_envs, *s), dtype) for _, s, dtype in self._leaves]
 
         self._task = first.task_logic  # scores the batch; per-env values live in _episode
-        try:
-            _check_batchable(first.task_spec)
-            models = [env.physics.model.ptr for env in self.envs]
-            index = first.physics.sim_index
-            self._backend: Backend
-            if physics == "warp":
-                self._backend = WarpBackend(models, device, index)
-            else:
-                self._backend = BatchBackend(models, self.num_threads, index)
-        except BaseException:
-            for env in self.envs:
-                env.close()
-            raise
+        self._backend = self._build_backend(physics)
         self._episode = {
-            name: np.zeros((num_envs, *shape)) for name, shape in self._task.episode_shapes.items()
+            name: zeros_where((num_envs, *shape), physics, self.device)
+            for name, shape in self._task.episode_shapes.items()
         }
         # The step, written once (gym_soarm.envs.core), over the whole batch.
         self._core = StepCore(
@@ -174,10 +167,26 @@ class BatchedVectorEnv(SoArmVectorBase):
         self._last_infos: dict[str, Any] = {}  # the last step's (for a divergence)
         self._reset_infos: list[dict[str, Any] | None] = [None] * num_envs
         self._info_from_reset = np.zeros(num_envs, dtype=np.bool_)  # last info: the reset's
+        self._ends = (self._info_from_reset.copy(), self._info_from_reset.copy())  # host's
         self._sparse = np.zeros(num_envs, dtype=np.bool_)  # reward_type, per environment
         self._control = self._batch_control(first)
         self._instructions = np.empty(num_envs, dtype=object)
         self.closed = False
+
+    def _build_backend(self, physics: str) -> Backend:
+        """The backend of the environments' simulations (they are closed if it fails)."""
+        first = self.envs[0]
+        try:
+            check_batchable(first.task_spec)
+            models = [env.physics.model.ptr for env in self.envs]
+            index = first.physics.sim_index
+            if physics == "warp":
+                return WarpBackend(models, self.device, index)
+            return BatchBackend(models, self.num_threads, index)
+        except BaseException:
+            for env in self.envs:
+                env.close()
+            raise
 
     @staticmethod
     def _batch_control(env: SoArmEnv) -> Any:
@@ -195,7 +204,7 @@ class BatchedVectorEnv(SoArmVectorBase):
         env = self.envs[i]
         self._backend.load(i, env.physics)
         for name, values in env.task_logic.episode.items():
-            self._episode[name][i] = values[0]
+            put(self._episode[name], i, values[0])
         self._commanded[i] = env.commanded_targets
         # A servo delay (drawn at each reset with physics randomisation) or the servo
         # model: this environment converts its own actions.
@@ -212,7 +221,7 @@ class BatchedVectorEnv(SoArmVectorBase):
         if self._in_batch[i]:
             self._backend.unload(i, env.physics)
             for name, values in env.task_logic.episode.items():
-                values[0] = self._episode[name][i]
+                values[0] = to_numpy(self._episode[name][i])
             env.servo_chain.commanded = self._commanded[i].copy()
             env.step_count = int(self._steps[i])
             self._in_batch[i] = False
@@ -238,7 +247,7 @@ class BatchedVectorEnv(SoArmVectorBase):
             infos = self._add_info(infos, info, i)
         self._backend.set_models()  # the resets edited the models
         self._elapsed[mask] = 0
-        return infos
+        return self._out.infos(infos)
 
     def _reset_one(
         self, i: int, seed: int | None, options: dict[str, Any] | None
@@ -251,13 +260,28 @@ class BatchedVectorEnv(SoArmVectorBase):
 
     def _write_obs(self, i: int, obs: Any) -> None:
         for (path, _, _), array in zip(self._leaves, self._obs_arrays, strict=True):
-            array[i] = leaf_value(obs, path)
+            put(array, i, leaf_value(obs, path))
+
+    def _add_info(
+        self, vector_infos: dict[str, Any], env_info: dict[str, Any], env_num: int
+    ) -> dict[str, Any]:
+        """Gymnasium's, with one environment's values as the batch's arrays hold them
+        (host values into the torch view's tensors)."""
+        env_info = self._out.matching(vector_infos, env_info)
+        return super()._add_info(vector_infos, env_info, env_num)
+
+    def _batched_obs(self) -> Any:
+        arrays = [self._out.copy(a) for a in self._obs_arrays] if self.copy else self._obs_arrays
+        return nest({path: a for (path, _, _), a in zip(self._leaves, arrays, strict=True)})
+
+    def _note_ends(self, terminated: Any, truncated: Any) -> None:
+        super()._note_ends(*self._ends)  # the host's copies of what _step returned
 
     def _step(self, actions: np.ndarray) -> StepReturn:
         """One step of the batch (the time limit, the autoreset and the divergences of
         the stepping environments), as N single environments would take it."""
         array = actions.astype(np.float64)
-        n, mode = self.num_envs, self.autoreset_mode
+        n, mode, out = self.num_envs, self.autoreset_mode, self._out
         restart = np.zeros(n, dtype=np.bool_)
         if mode is AutoresetMode.NEXT_STEP:
             restart = self._autoreset_envs.copy()  # these reset instead of stepping
@@ -271,25 +295,21 @@ class BatchedVectorEnv(SoArmVectorBase):
         )
         self._sim = result.sim
         reasons = result.diverged
-        diverged = np.zeros(n, dtype=np.bool_)
-        diverged[list(reasons)] = True
-        rewards = result.reward
-        terminated = result.success.copy()
+        rewards = out.values(result.reward, FLOAT)
         obs_rows = self._observations()
         infos = self._infos(self._sim, result.evaluation, result.success, result.terms)
-        terminated &= stepping
+        terminated = result.host_success & stepping
         truncated = np.zeros(n, dtype=np.bool_)
         if self.max_episode_steps is not None:
             truncated = stepping & (self._elapsed >= self.max_episode_steps)
-        last_obs = {
-            i: [a[i].copy() for a in self._obs_arrays] for i in np.flatnonzero(diverged).tolist()
-        }
+        last_obs = {i: [out.copy(a[i]) for a in self._obs_arrays] for i in sorted(reasons)}
         for array_, rows in zip(self._obs_arrays, obs_rows, strict=True):
-            array_[stepping] = rows[stepping]
-        if diverged.any():
+            out.rows(array_, rows, ids)
+        if reasons:
             self._truncate_diverged(reasons, last_obs, rewards, terminated, truncated, infos)
         self._info_from_reset[stepping] = False  # their last info is this step's
         ended = (terminated | truncated) & stepping
+        self._ends = (terminated, truncated)
         if mode is AutoresetMode.SAME_STEP and ended.any():
             infos = self._reset_ended(np.flatnonzero(ended), infos)
         for i in np.flatnonzero(restart).tolist():
@@ -300,8 +320,9 @@ class BatchedVectorEnv(SoArmVectorBase):
             infos = self._add_info(infos, info, i)
         if restart.any():
             self._backend.set_models()
-        self._last_infos = infos
-        return self._batched_obs(), rewards, terminated, truncated, infos
+        self._last_infos = infos = out.infos(infos)
+        ends = (out.values(terminated), out.values(truncated))
+        return self._batched_obs(), rewards, *ends, infos
 
     def _targets(self, actions: np.ndarray, ids: np.ndarray) -> np.ndarray:
         """The servo targets (rad) of the stepping environments ``ids``: converted for the
@@ -319,61 +340,67 @@ class BatchedVectorEnv(SoArmVectorBase):
             self._commanded[i] = chain.commanded
         return targets
 
-    def _observations(self) -> list[np.ndarray]:
-        first = self.envs[0]
+    def _observations(self) -> list[Any]:
+        """Every environment's observation of this step, one array of the view a leaf."""
+        first, sim, out = self.envs[0], self._sim, self._out
         if first.obs_type == "state":
-            return [np.asarray(self._core.state_observation(self._sim, self._commanded))]
+            commanded = in_namespace(sim.xp, self._commanded, sim.qpos)
+            return [out.values(self._core.state_observation(sim, commanded), np.float32)]
         if first.obs_type == "environment_state_agent_pos":
-            angles = self._sim.joint_angles()
+            angles = sim.joint_angles()
+            if first.units != "radians":  # the units' conversion is NumPy's
+                angles = first.joint_units.from_radians(to_numpy(angles))
             values = {
-                ("agent_pos",): first.joint_units.from_radians(angles),
-                ("environment_state",): self._core.environment_state(self._sim),
+                ("agent_pos",): angles,
+                ("environment_state",): self._core.environment_state(sim),
             }
-            return [values[path].astype(dtype) for path, _, dtype in self._leaves]
+            return [out.values(values[path], dtype) for path, _, dtype in self._leaves]
         # Pixels: each environment renders its own copy of the simulation.
-        rows = [np.zeros_like(a) for a in self._obs_arrays]
+        rows = [np.zeros((self.num_envs, *shape), dtype) for _, shape, dtype in self._leaves]
         for i in range(self.num_envs):
             env = self._unload(i)
             obs = env.observation()
             for (path, _, _), array in zip(self._leaves, rows, strict=True):
                 array[i] = leaf_value(obs, path)
-        return rows
+        return [out.values(array) for array in rows]
 
     def _infos(
-        self, sim: SimArrays, evaluation: dict[str, Any], success: np.ndarray, terms: dict[str, Any]
+        self, sim: SimArrays, evaluation: dict[str, Any], success: Any, terms: dict[str, Any]
     ) -> dict[str, Any]:
-        n = self.num_envs
+        """This step's infos: the values computed with the simulations in the view, the
+        host's as they are (the view takes them in when the step returns)."""
+        n, out = self.num_envs, self._out
         ones = np.ones(n, dtype=np.bool_)
-        infos: dict[str, Any] = {"is_success": success, "_is_success": ones}
+        infos: dict[str, Any] = {"is_success": out.values(success), "_is_success": ones}
         task_info, gripper = self._core.info_values(sim, evaluation)
         for key, value in task_info.items():
-            infos[key] = _column(value, n)
+            infos[key] = column(value, n, out)
             infos[f"_{key}"] = ones
-        infos["gripper_pos"] = np.array(gripper)
+        infos["gripper_pos"] = out.values(gripper)
         infos["_gripper_pos"] = ones
         reward_terms: dict[str, Any] = {}
         for name, value in terms.items():
-            reward_terms[name] = np.asarray(value, dtype=np.float64)
+            reward_terms[name] = out.values(value, FLOAT)
             reward_terms[f"_{name}"] = ones
         infos["reward_terms"] = reward_terms
         infos["_reward_terms"] = ones
         infos["task"] = self._instructions.copy()
         infos["_task"] = ones
-        infos["physics_unstable"] = np.zeros(n, dtype=np.bool_)
+        infos["physics_unstable"] = out.values(np.zeros(n, dtype=np.bool_))
         infos["_physics_unstable"] = ones
         control_keys = self.envs[0].control.info()
         if control_keys:  # the end-effector modes: each environment converted its own action
             rows = [env.control.info() for env in self.envs]
             for key in control_keys:
-                infos[key] = _column([row[key] for row in rows], n)
+                infos[key] = column([row[key] for row in rows], n, out)
                 infos[f"_{key}"] = ones
         return infos
 
     def _truncate_diverged(
         self,
         reasons: dict[int, str],
-        last_obs: dict[int, list[np.ndarray]],
-        rewards: np.ndarray,
+        last_obs: dict[int, list[Any]],
+        rewards: Any,
         terminated: np.ndarray,
         truncated: np.ndarray,
         infos: dict[str, Any],
@@ -399,9 +426,9 @@ class BatchedVectorEnv(SoArmVectorBase):
                 if key.startswith("_") or isinstance(value, dict):
                     continue
                 if reset_info is not None and key in reset_info:
-                    value[i] = reset_info[key]
+                    put(value, i, reset_info[key])
                 elif reset_info is None and key in previous:
-                    value[i] = previous[key][i]
+                    put(value, i, previous[key][i])
             # As a single environment, it refuses to go on until reset.
             self.envs[i].end_episode(
                 f"the previous step truncated the episode because the physics diverged "
@@ -415,25 +442,51 @@ class BatchedVectorEnv(SoArmVectorBase):
 
     def _reset_ended(self, ended: np.ndarray, infos: dict[str, Any]) -> dict[str, Any]:
         """``SAME_STEP``: keep the ended episodes' last observations and infos, reset them."""
-        finals = {}
-        for i in ended.tolist():
-            final_obs = nest(
-                {
-                    path: a[i].copy()
-                    for (path, _, _), a in zip(self._leaves, self._obs_arrays, strict=True)
-                }
-            )
-            finals[i] = (
-                final_obs,
-                {k: _row(v, i) for k, v in infos.items() if not k.startswith("_")},
-            )
+        if isinstance(self._out, TorchView):
+            finals = self._out_finals(ended, infos)
+        else:
+            finals = {}
+            for i in ended.tolist():
+                final_obs = nest(
+                    {
+                        path: a[i].copy()
+                        for (path, _, _), a in zip(self._leaves, self._obs_arrays, strict=True)
+                    }
+                )
+                finals[i] = (
+                    final_obs,
+                    {k: row_of(v, i) for k, v in infos.items() if not k.startswith("_")},
+                )
         for i in ended.tolist():
             obs, info = self._reset_one(i, None, None)
             self._write_obs(i, obs)
             self._elapsed[i] = 0
             infos = self._add_info(infos, info, i)
         self._backend.set_models()
+        if isinstance(self._out, TorchView):
+            return {**infos, **finals}
         return self._add_finals(infos, finals)
+
+    def _out_finals(self, ended: np.ndarray, infos: dict[str, Any]) -> dict[str, Any]:
+        """The torch view's ``final_obs`` and ``final_info``: batched tensors, zeros in
+        the rows of the environments that did not end (the masks mark those that did)."""
+        out = self._out
+        mask = np.zeros(self.num_envs, dtype=np.bool_)
+        mask[ended] = True
+        rows = out.values(mask)
+        final_obs = nest(
+            {
+                path: out.ended_rows(a, rows)
+                for (path, _, _), a in zip(self._leaves, self._obs_arrays, strict=True)
+            }
+        )
+        final_info = out.finals(out.infos(infos), rows, mask)
+        return {
+            "final_obs": final_obs,
+            "_final_obs": rows,
+            "final_info": final_info,
+            "_final_info": rows,
+        }
 
     # --- calls and attributes --------------------------------------------------------------
     def _call(self, indices: list[int], name: str, args: tuple, kwargs: dict) -> list[Any]:
@@ -477,60 +530,6 @@ class BatchedVectorEnv(SoArmVectorBase):
             raise errors[0]
 
 
-def _check_batchable(spec: Any) -> None:
-    """Refuse a task whose ``before_step`` hook acts on one environment's physics."""
-    from gym_soarm.tasks.base import Task
-
-    if spec.task.before_step is not Task.before_step:
-        raise ValueError(
-            f"{spec.name}'s task overrides before_step(action, physics), which acts on one "
-            "environment's physics between its own steps; the batched vector env steps every "
-            "simulation at once and cannot call it. Use vector_env='processes'."
-        )
-
-
-def wants_batched(env_kwargs: dict[str, Any]) -> bool:
-    """Whether ``vector_env="auto"`` batches these environments: state observations, and
-    a task that leaves ``before_step`` to the environment."""
-    from gym_soarm.tasks import DEFAULT_TASK, get_task
-
-    settings = env_kwargs.get("settings")
-    obs_type = env_kwargs.get("obs_type", getattr(settings, "obs_type", None))
-    task = env_kwargs.get("task", getattr(settings, "task", None)) or DEFAULT_TASK
-    try:
-        spec = get_task(task)
-    except (ValueError, TypeError):  # an unknown task: the environment names the error
-        return obs_type in STATE_OBS_TYPES
-    try:
-        _check_batchable(spec)
-    except ValueError:
-        return False
-    return obs_type in STATE_OBS_TYPES
-
-
-def _check_warp_settings(env_kwargs: dict[str, Any]) -> None:
-    """Refuse the settings whose resets change a world's physics model beyond what the
-    Warp backend batches per world (fixture poses)."""
-    settings = env_kwargs.get("settings")
-    level = env_kwargs.get(
-        "physics_randomization", getattr(settings, "physics_randomization", "none")
-    )
-    if level != "none":
-        raise ValueError(
-            f"physics_randomization={level!r} draws masses, friction, gains and damping into "
-            "each environment's model at every reset; the Warp backend shares one model "
-            "across its worlds and batches only the fixtures' poses. Use "
-            "physics_randomization='none' with vector_env='warp', or vector_env='batched'."
-        )
-
-
-PHYSICS_BACKENDS: tuple[str, ...] = ("mujoco", "warp")
-"""The physics of the batched vector env: C MuJoCo's ``mujoco.batch`` or MuJoCo Warp."""
-
-VECTOR_ENVS: tuple[str, ...] = ("auto", "batched", "processes", "warp")
-"""Values of ``vector_env``: how ``gym.make_vec(..., vectorization_mode="vector_entry_point")``
-steps the environments."""
-
 _PROCESS_KEYWORDS = ("num_processes", "start_method")
 
 
@@ -546,20 +545,25 @@ def make_vector_env(num_envs: int, vector_env: str = "auto", **kwargs: Any) -> V
             its block of environments) or ``"auto"`` (default): batched for state
             observations, processes for pixels or where ``num_processes`` or
             ``start_method`` is given.
-        **kwargs: the vector env's own arguments and ``gym.make``'s keywords.
+        **kwargs: the vector env's own arguments and ``gym.make``'s keywords;
+            ``array_api`` (``"numpy"``, the default, or ``"torch"``:
+            :mod:`gym_soarm.vector.views`) for the batched and Warp envs.
 
     Raises:
-        ValueError: an unknown ``vector_env``, or process arguments for the batched env.
+        ValueError: an unknown ``vector_env`` or ``array_api``, process arguments for
+            the batched env, or ``array_api="torch"`` for the process-based env.
     """
     from gym_soarm.vector.processes import SoArmVectorEnv
 
     check_choice("vector_env", vector_env, VECTOR_ENVS)
+    array_api = check_choice("array_api", kwargs.pop("array_api", "numpy"), ARRAY_APIS)
     process_args = [k for k in _PROCESS_KEYWORDS if kwargs.get(k) is not None]
     if vector_env == "auto":
         vector_env = "batched" if wants_batched(kwargs) and not process_args else "processes"
     if vector_env == "warp":
         kwargs["physics"] = "warp"
     if vector_env == "processes":
+        check_numpy_only(array_api)
         kwargs.pop("num_threads", None)
         return SoArmVectorEnv(num_envs, **kwargs)
     if process_args:
@@ -570,7 +574,7 @@ def make_vector_env(num_envs: int, vector_env: str = "auto", **kwargs: Any) -> V
         )
     for key in _PROCESS_KEYWORDS:
         kwargs.pop(key, None)
-    return BatchedVectorEnv(num_envs, **kwargs)
+    return BatchedVectorEnv(num_envs, array_api=array_api, **kwargs)
 
 
 __all__ = ["VECTOR_ENVS", "BatchedVectorEnv", "make_vector_env", "wants_batched"]

@@ -103,7 +103,8 @@ def check_actions(
     """A vector step's ``actions`` as an array, checked before anything steps.
 
     Args:
-        actions: one row per environment.
+        actions: one row per environment (a torch tensor is copied to the host: the
+            control modes convert actions in NumPy).
         shape: the batched action space's shape.
         mode: the autoreset mode (rows of environments that reset instead may be anything).
         ended: which environments ended their episodes on the previous step.
@@ -112,6 +113,8 @@ def check_actions(
         ValueError: another shape, not real numbers, or NaN/inf in a row that steps.
         RuntimeError: ``DISABLED`` and an ended episode not reset yet.
     """
+    if hasattr(actions, "detach") and hasattr(actions, "cpu"):  # torch, on any device
+        actions = actions.detach().cpu().numpy()
     array = np.asarray(actions)
     if array.shape != shape:
         raise ValueError(
