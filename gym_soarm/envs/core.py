@@ -15,6 +15,10 @@ A control step of every environment of the package, the single
 5. the observations that need no camera (:meth:`StepCore.state_observation`) and the
    values of the infos (:meth:`StepCore.info_values`).
 
+The batch's steps run on the arrays' own library and device (NumPy for ``mujoco.batch``,
+torch on the device for MuJoCo Warp: :mod:`gym_soarm.sim.arrays`); only what the
+episode bookkeeping needs comes to the host, in one transfer a step.
+
 The environments keep what is theirs: argument checks, resets, rendering, and the time
 limit and autoreset of a vector env (:mod:`gym_soarm.vector`). One environment is
 scored on its unbatched arrays (Python scalars, :data:`gym_soarm.sim.arrays.SCALARS`):
@@ -110,6 +114,11 @@ class StepCore:
             steps: each episode's step count after this step (the success bonus).
             limit: the episodes' step limit (the success bonus).
             sparse: whether each environment's reward is sparse.
+
+        On a batch the arrays stay where the backend keeps them (torch tensors on
+        MuJoCo Warp's device): the scores are computed there, and one ``(3, n)`` boolean
+        array comes to the host (the simulations that diverged or overflowed, and those
+        that succeeded: :attr:`StepResult.host_success`).
         """
         if self._before_step is not None:
             self._before_step(targets)

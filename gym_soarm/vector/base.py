@@ -87,6 +87,7 @@ class SoArmVectorBase(VectorEnv):
         self._leaves = observation_leaves(self.single_observation_space)
         self._obs_arrays: list[np.ndarray] = []  # one array per leaf, filled by the subclass
         self._autoreset_envs = np.zeros(self.num_envs, dtype=np.bool_)
+        self._host_ends: tuple[np.ndarray, np.ndarray] | None = None
         self._started = False
 
     # --- what the subclass implements --------------------------------------------------
@@ -172,7 +173,10 @@ class SoArmVectorBase(VectorEnv):
 
     def _note_ends(self, terminated: np.ndarray, truncated: np.ndarray) -> None:
         """Which environments' episodes ended and wait for a reset (``SAME_STEP`` reset
-        them already)."""
+        them already). A transport that returns them as tensors on a device leaves their
+        host copies in ``_host_ends``, read instead."""
+        if self._host_ends is not None:
+            terminated, truncated = self._host_ends
         if self.autoreset_mode is AutoresetMode.SAME_STEP:
             self._autoreset_envs = np.zeros(self.num_envs, dtype=np.bool_)
         else:

@@ -167,7 +167,6 @@ class BatchedVectorEnv(SoArmVectorBase):
         self._last_infos: dict[str, Any] = {}  # the last step's (for a divergence)
         self._reset_infos: list[dict[str, Any] | None] = [None] * num_envs
         self._info_from_reset = np.zeros(num_envs, dtype=np.bool_)  # last info: the reset's
-        self._ends = (self._info_from_reset.copy(), self._info_from_reset.copy())  # host's
         self._sparse = np.zeros(num_envs, dtype=np.bool_)  # reward_type, per environment
         self._control = self._batch_control(first)
         self._instructions = np.empty(num_envs, dtype=object)
@@ -270,13 +269,6 @@ class BatchedVectorEnv(SoArmVectorBase):
         env_info = self._out.matching(vector_infos, env_info)
         return super()._add_info(vector_infos, env_info, env_num)
 
-    def _batched_obs(self) -> Any:
-        arrays = [self._out.copy(a) for a in self._obs_arrays] if self.copy else self._obs_arrays
-        return nest({path: a for (path, _, _), a in zip(self._leaves, arrays, strict=True)})
-
-    def _note_ends(self, terminated: Any, truncated: Any) -> None:
-        super()._note_ends(*self._ends)  # the host's copies of what _step returned
-
     def _step(self, actions: np.ndarray) -> StepReturn:
         """One step of the batch (the time limit, the autoreset and the divergences of
         the stepping environments), as N single environments would take it."""
@@ -309,7 +301,7 @@ class BatchedVectorEnv(SoArmVectorBase):
             self._truncate_diverged(reasons, last_obs, rewards, terminated, truncated, infos)
         self._info_from_reset[stepping] = False  # their last info is this step's
         ended = (terminated | truncated) & stepping
-        self._ends = (terminated, truncated)
+        self._host_ends = (terminated, truncated)  # what _note_ends reads
         if mode is AutoresetMode.SAME_STEP and ended.any():
             infos = self._reset_ended(np.flatnonzero(ended), infos)
         for i in np.flatnonzero(restart).tolist():

@@ -73,10 +73,11 @@ def values_per_env(values: Any, num_envs: int) -> list[Any]:
     return list(values)
 
 
-def batched_obs(leaves: list[Leaf], arrays: list[np.ndarray], copy: bool) -> Any:
-    """The observation of a vector env from its leaf arrays (fresh copies if ``copy``)."""
+def batched_obs(leaves: list[Leaf], arrays: list[Any], copy: bool) -> Any:
+    """The observation of a vector env from its leaf arrays, NumPy arrays or torch
+    tensors (fresh copies if ``copy``)."""
     if copy:
-        arrays = [a.copy() for a in arrays]
+        arrays = [a.clone() if hasattr(a, "clone") else a.copy() for a in arrays]
     return nest({path: a for (path, _, _), a in zip(leaves, arrays, strict=True)})
 
 
