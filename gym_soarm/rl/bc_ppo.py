@@ -10,6 +10,7 @@ import numpy as np
 import torch
 from stable_baselines3 import PPO
 
+from gym_soarm.rl.cloning import clone_steps, frozen
 from gym_soarm.rl.imitation import actor_mean, actor_parameters
 
 
@@ -68,14 +69,8 @@ class BCRegularizedPPO(PPO):
         self.bc_coef *= self.bc_decay
 
     def _train_critic_alone(self) -> None:
-        frozen = self.actor_parameters()
-        for parameter in frozen:
-            parameter.requires_grad_(False)
-        try:
+        with frozen(self.actor_parameters()):
             super().train()
-        finally:
-            for parameter in frozen:
-                parameter.requires_grad_(True)
         self.critic_warmup -= 1
         self.logger.record("train/critic_warmup_left", self.critic_warmup)
 
@@ -91,17 +86,14 @@ class BCRegularizedPPO(PPO):
         x = torch.as_tensor(np.asarray(obs, np.float32), device=self.device)
         y = torch.as_tensor(self.demo_actions, device=self.device)
         self.policy.set_training_mode(True)
-        losses = []
-        for _ in range(steps):
-            index = torch.randint(len(x), (min(self.bc_batch_size, len(x)),))
-            loss = torch.nn.functional.mse_loss(actor_mean(self.policy, x[index]), y[index])
-            self.policy.optimizer.zero_grad()
-            (self.bc_coef * loss).backward()
-            torch.nn.utils.clip_grad_norm_(self.policy.parameters(), self.max_grad_norm)
-            self.policy.optimizer.step()
-            losses.append(loss.item())
-        self.policy.set_training_mode(False)
-        return losses
+        try:
+            return clone_steps(
+                lambda batch: actor_mean(self.policy, batch), self.policy.parameters,
+                self.policy.optimizer, x, y, self.bc_coef, self.bc_batch_size, steps,
+                self.max_grad_norm,
+            )  # fmt: skip
+        finally:
+            self.policy.set_training_mode(False)
 
 
 __all__ = ["BCRegularizedPPO"]

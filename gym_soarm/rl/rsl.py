@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from gym_soarm.rl.cloning import frozen
 from gym_soarm.rl.curves import CURVE_FIELDS, TrainResult
 from gym_soarm.rl.evaluation import POLICY_FORMAT, SETTINGS_FILE, score
 from gym_soarm.rl.rsl_init import freeze_normalizer, start_from_sb3
@@ -226,14 +227,8 @@ class RslTrainer:
         """``iterations`` of PPO in which the actor's parameters stay as they are; the
         learning rate then restarts from the recipe's (the adaptive schedule saw no KL)."""
         alg = self.runner.alg
-        parameters = list(alg.actor.parameters())
-        for parameter in parameters:
-            parameter.requires_grad_(False)
-        try:
+        with frozen(alg.actor.parameters()):
             self.iterate(iterations)
-        finally:
-            for parameter in parameters:
-                parameter.requires_grad_(True)
         alg.learning_rate = float(self.settings["algo"]["learning_rate"])
         for group in alg.optimizer.param_groups:
             group["lr"] = alg.learning_rate

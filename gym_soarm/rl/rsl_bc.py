@@ -18,6 +18,7 @@ import torch
 from rsl_rl.algorithms import PPO
 from tensordict import TensorDict
 
+from gym_soarm.rl.cloning import clone_steps
 from gym_soarm.rl.rsl_policy import OBS_GROUP
 
 
@@ -49,18 +50,12 @@ class BCRegularizedPPO(PPO):
 
     def _clone(self, steps: int) -> float:
         """``steps`` gradient steps of the BC term; their mean loss."""
-        total = 0.0
-        size = min(self.bc_batch_size, len(self.demo_obs))
-        for _ in range(steps):
-            index = torch.randint(len(self.demo_obs), (size,), device=self.device)
-            obs = TensorDict({OBS_GROUP: self.demo_obs[index]}, batch_size=[size])
-            loss = torch.nn.functional.mse_loss(self.actor(obs), self.demo_actions[index])
-            self.optimizer.zero_grad()
-            (self.bc_coef * loss).backward()
-            torch.nn.utils.clip_grad_norm_(self.actor.parameters(), self.max_grad_norm)
-            self.optimizer.step()
-            total += loss.item()
-        return total / steps
+        losses = clone_steps(
+            lambda obs: self.actor(TensorDict({OBS_GROUP: obs}, batch_size=[len(obs)])),
+            self.actor.parameters, self.optimizer, self.demo_obs, self.demo_actions,
+            self.bc_coef, self.bc_batch_size, steps, self.max_grad_norm,
+        )  # fmt: skip
+        return sum(losses) / steps
 
 
 __all__ = ["BCRegularizedPPO"]

@@ -391,9 +391,7 @@ def _start_folder(
     """The run's folder with its ``settings.json``, and the checked ``--init`` folder's
     settings (None without one)."""
     env_kwargs = dict(settings["env"])
-    probe = make_env(spec.name, env_kwargs)
-    observation_names = list(probe.unwrapped.observation_names)
-    probe.close()
+    observation_names = _observation_names(spec.name, env_kwargs)
     source = (
         None
         if init is None
@@ -416,6 +414,15 @@ def _start_folder(
         },
     )
     return folder, source
+
+
+def _observation_names(task: str, env_kwargs: dict[str, Any]) -> list[str]:
+    """The names of the observation's values of ``task`` made with ``env_kwargs``."""
+    probe = make_env(task, env_kwargs)
+    try:
+        return list(probe.unwrapped.observation_names)
+    finally:
+        probe.close()
 
 
 def _checked_settings(
@@ -558,10 +565,7 @@ def _check_rsl_init(folder: Path, task: str, settings: dict[str, Any]) -> Path:
     env_kwargs = settings["env"]
     source = read_settings(folder)  # ValueError: not a policy folder
     if source.get("library") != RSL_LIBRARY:
-        probe = make_env(task, env_kwargs)
-        names = list(probe.unwrapped.observation_names)
-        probe.close()
-        _check_init(folder, task, env_kwargs, names, normalize=True)
+        _check_init(folder, task, env_kwargs, _observation_names(task, env_kwargs), normalize=True)
         actor = read_sb3_actor(folder)
         settings["algo"].update(hidden_dims=actor.hidden_dims, activation=actor.activation)
         settings["frozen_actor_normalizer"] = True

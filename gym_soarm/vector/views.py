@@ -81,15 +81,16 @@ class NumpyView:
         for key, value in infos.items():
             if isinstance(value, dict):
                 out[key] = self.infos(value)
-            elif isinstance(value, np.ndarray) and value.dtype == object:
-                out[key] = value
-            elif isinstance(value, np.ndarray) and self.name == "numpy":
-                out[key] = value  # already the view's (made by values or _add_info)
-            elif hasattr(value, "shape"):
+            elif hasattr(value, "shape") and not self._is_own(value):
                 out[key] = self.values(value)
             else:
                 out[key] = value
         return out
+
+    def _is_own(self, value: Any) -> bool:
+        """Whether ``infos`` keeps ``value`` as it is: an object array, or already this
+        view's array (made by values or _add_info)."""
+        return isinstance(value, np.ndarray)
 
     def matching(self, batched: dict[str, Any], info: dict[str, Any]) -> dict[str, Any]:
         """``info`` (one environment's) with its values as ``batched``'s arrays hold them."""
@@ -136,20 +137,10 @@ class TorchView(NumpyView):
             index = self._torch.as_tensor(ids, device=self.device)
             array[index] = rows[index]
 
-    def infos(self, infos: dict[str, Any]) -> dict[str, Any]:
-        out: dict[str, Any] = {}
-        for key, value in infos.items():
-            if isinstance(value, dict):
-                out[key] = self.infos(value)
-            elif isinstance(value, np.ndarray) and value.dtype == object:
-                out[key] = value
-            elif is_tensor(value) and value.device == self.device:
-                out[key] = value  # made by values, or a final_info entry
-            elif hasattr(value, "shape"):
-                out[key] = self.values(value)
-            else:
-                out[key] = value
-        return out
+    def _is_own(self, value: Any) -> bool:
+        if isinstance(value, np.ndarray):
+            return value.dtype == object
+        return is_tensor(value) and value.device == self.device  # by values, or a final_info's
 
     def matching(self, batched: dict[str, Any], info: dict[str, Any]) -> dict[str, Any]:
         out = {}
