@@ -289,7 +289,6 @@ LONG_FUNCTIONS: dict[str, int] = {
     "gym_soarm/cli/train.py:main": 75,
     "gym_soarm/data/writer.py:LeRobotDatasetWriter._write_metadata": 67,
     "gym_soarm/data/writer.py:LeRobotDatasetWriter.save_episode": 79,
-    "gym_soarm/real/sysid.py:fit_dynamics": 129,
     "gym_soarm/record/record.py:record": 78,
     "gym_soarm/sim/kinematics.py:ArmKinematics.solve_pose": 72,
     "gym_soarm/tasks/push_cube.py:PushStateExpert.decide": 76,
@@ -300,7 +299,6 @@ lines, the most they may have."""
 LONG_MODULES: dict[str, int] = {
     "gym_soarm/data/writer.py": 735,
     "gym_soarm/envs/control.py": 678,
-    "gym_soarm/real/sysid.py": 638,
     "gym_soarm/vector/processes.py": 645,
 }
 """Modules over MODULE_BUDGET lines today -> their lines, the most they may have."""
