@@ -2,14 +2,16 @@
 
 :class:`SoArmVectorBase` holds what does not depend on how the simulations are stepped:
 the checks of the constructor's common arguments, the spaces and metadata taken from the
-first environment, the seed, reset-mask and action checks, the autoreset state (which
-environments ended their episodes, per :class:`gymnasium.vector.AutoresetMode`), the
-final observations and infos of ``SAME_STEP``, the time limit's attribute, and
+first environment, the seed, reset-mask and action checks, the time limit and the
+autoreset (an :class:`EpisodeClock`: the steps of each episode, which episodes ended, which
+environments reset instead of stepping and which reach the limit, per
+:class:`gymnasium.vector.AutoresetMode`), the final observations and infos of
+``SAME_STEP``, the time limit's attribute, and
 ``call``/``call_some``/``get_attr``/``set_attr``/``render``/``close``. A subclass is the
 transport: :class:`~gym_soarm.vector.batched.BatchedVectorEnv` (one batch of simulations
 in this process) and :class:`~gym_soarm.vector.processes.SoArmVectorEnv` (worker
 processes) implement ``_reset``, ``_step``, ``_call``, ``_get_attr``, ``_set_attr`` and
-``close_extras``.
+``close_extras``; their ``_step`` applies the clock's plan and keeps no count of its own.
 """
 
 from __future__ import annotations
@@ -35,6 +37,52 @@ from gym_soarm.vector.common import (
 )
 
 StepReturn = tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]
+
+
+class EpisodeClock:
+    """The time limit and the autoreset of a vector env's episodes, kept once.
+
+    Holds the steps of each environment's episode (:attr:`elapsed`, as Gymnasium's
+    ``TimeLimit`` counts them) and which episodes ended and wait for a reset
+    (:attr:`ended`). Before a step, :meth:`plan` says which environments reset instead
+    of stepping (``NEXT_STEP``) and which reach the limit with this step; after it,
+    :meth:`advance` counts the step and notes the ends.
+    """
+
+    def __init__(self, num_envs: int, limit: int | None, mode: AutoresetMode) -> None:
+        self.limit, self.mode = limit, mode
+        self.elapsed = np.zeros(num_envs, dtype=np.int64)
+        self.ended = np.zeros(num_envs, dtype=np.bool_)
+
+    def plan(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(restart, time_up)``: the environments that reset instead of stepping, and
+        those whose step reaches the time limit (truncated, whatever else happens)."""
+        restart = np.zeros_like(self.ended)
+        if self.mode is AutoresetMode.NEXT_STEP:
+            restart = self.ended.copy()
+        time_up = np.zeros_like(self.ended)
+        if self.limit is not None:
+            time_up = ~restart & (self.elapsed + 1 >= self.limit)
+        return restart, time_up
+
+    def reset(self, mask: np.ndarray | None) -> None:
+        """The environments of ``mask`` (None: all) start new episodes."""
+        where = slice(None) if mask is None else mask
+        self.elapsed[where] = 0
+        self.ended[where] = False
+
+    def advance(self, restart: np.ndarray, terminated: np.ndarray, truncated: np.ndarray) -> None:
+        """Count a step of the plan ``restart`` that ended these episodes (``SAME_STEP``
+        reset them already)."""
+        stepping = ~restart
+        self.elapsed[stepping] += 1
+        self.elapsed[restart] = 0
+        ended = (terminated | truncated) & stepping
+        if self.mode is AutoresetMode.SAME_STEP:
+            self.elapsed[ended] = 0
+            self.ended = np.zeros_like(ended)
+        else:
+            self.ended = ended
 
 
 class SoArmVectorBase(VectorEnv):
@@ -86,7 +134,7 @@ class SoArmVectorBase(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._leaves = observation_leaves(self.single_observation_space)
         self._obs_arrays: list[np.ndarray] = []  # one array per leaf, filled by the subclass
-        self._autoreset_envs = np.zeros(self.num_envs, dtype=np.bool_)
+        self._clock = EpisodeClock(self.num_envs, self.max_episode_steps, self.autoreset_mode)
         self._host_ends: tuple[np.ndarray, np.ndarray] | None = None
         self._started = False
 
@@ -98,8 +146,10 @@ class SoArmVectorBase(VectorEnv):
         their infos, batched."""
         raise NotImplementedError
 
-    def _step(self, actions: np.ndarray) -> StepReturn:
-        """Step with checked ``actions`` (resetting as :attr:`autoreset_mode` asks)."""
+    def _step(self, actions: np.ndarray, restart: np.ndarray, time_up: np.ndarray) -> StepReturn:
+        """Step with checked ``actions``: the environments of ``restart`` reset instead
+        (reward 0, not ended, their reset's info), those of ``time_up`` are truncated, and
+        in ``SAME_STEP`` an ended episode resets at once (:meth:`_add_finals`)."""
         raise NotImplementedError
 
     def _call(self, indices: list[int], name: str, args: tuple, kwargs: dict) -> list[Any]:
@@ -141,7 +191,7 @@ class SoArmVectorBase(VectorEnv):
         options = dict(options) if options is not None else None
         mask = pop_reset_mask(options, self.num_envs)
         infos = self._reset(seeds, options, mask)
-        self._autoreset_envs[slice(None) if mask is None else mask] = False
+        self._clock.reset(mask)
         self._started = True
         return self._batched_obs(), infos
 
@@ -165,22 +215,25 @@ class SoArmVectorBase(VectorEnv):
         if not self._started:
             raise RuntimeError("call reset() before step() on the vector environment.")
         array = check_actions(
-            actions, self.action_space.shape, self.autoreset_mode, self._autoreset_envs
+            actions, self.action_space.shape, self.autoreset_mode, self._clock.ended
         )
-        obs, rewards, terminated, truncated, infos = self._step(array)
-        self._note_ends(terminated, truncated)
+        restart, time_up = self._clock.plan()
+        obs, rewards, terminated, truncated, infos = self._step(array, restart, time_up)
+        self._note_ends(restart, terminated, truncated)
         return obs, rewards, terminated, truncated, infos
 
-    def _note_ends(self, terminated: np.ndarray, truncated: np.ndarray) -> None:
-        """Which environments' episodes ended and wait for a reset (``SAME_STEP`` reset
-        them already). A transport that returns them as tensors on a device leaves their
+    @property
+    def _autoreset_envs(self) -> np.ndarray:
+        """Which environments' episodes ended and wait for a reset."""
+        return self._clock.ended
+
+    def _note_ends(self, restart: np.ndarray, terminated: Any, truncated: Any) -> None:
+        """The clock counts the step of the plan ``restart`` and notes which episodes
+        ended. A transport that returns the ends as tensors on a device leaves their
         host copies in ``_host_ends``, read instead."""
         if self._host_ends is not None:
             terminated, truncated = self._host_ends
-        if self.autoreset_mode is AutoresetMode.SAME_STEP:
-            self._autoreset_envs = np.zeros(self.num_envs, dtype=np.bool_)
-        else:
-            self._autoreset_envs = terminated | truncated
+        self._clock.advance(restart, np.asarray(terminated), np.asarray(truncated))
 
     def _add_finals(
         self, infos: dict[str, Any], finals: dict[int, tuple[Any, dict[str, Any]]]

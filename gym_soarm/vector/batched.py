@@ -161,7 +161,6 @@ class BatchedVectorEnv(SoArmVectorBase):
         self._sim = self._core.arrays()
         self._commanded = np.zeros((num_envs, len(constants.JOINT_NAMES)))
         self._steps = np.zeros(num_envs, dtype=np.int64)  # this episode's, as the env's
-        self._elapsed = np.zeros(num_envs, dtype=np.int64)  # the time limit's count
         self._in_batch = np.zeros(num_envs, dtype=np.bool_)  # env i's own data is stale
         self._own_control = np.zeros(num_envs, dtype=np.bool_)
         self._last_infos: dict[str, Any] = {}  # the last step's (for a divergence)
@@ -245,7 +244,6 @@ class BatchedVectorEnv(SoArmVectorBase):
             self._write_obs(i, obs)
             infos = self._add_info(infos, info, i)
         self._backend.set_models()  # the resets edited the models
-        self._elapsed[mask] = 0
         return self._out.infos(infos)
 
     def _reset_one(
@@ -269,18 +267,14 @@ class BatchedVectorEnv(SoArmVectorBase):
         env_info = self._out.matching(vector_infos, env_info)
         return super()._add_info(vector_infos, env_info, env_num)
 
-    def _step(self, actions: np.ndarray) -> StepReturn:
-        """One step of the batch (the time limit, the autoreset and the divergences of
-        the stepping environments), as N single environments would take it."""
+    def _step(self, actions: np.ndarray, restart: np.ndarray, time_up: np.ndarray) -> StepReturn:
+        """One step of the batch (the clock's plan and the divergences of the stepping
+        environments), as N single environments would take it."""
         array = actions.astype(np.float64)
-        n, mode, out = self.num_envs, self.autoreset_mode, self._out
-        restart = np.zeros(n, dtype=np.bool_)
-        if mode is AutoresetMode.NEXT_STEP:
-            restart = self._autoreset_envs.copy()  # these reset instead of stepping
+        mode, out = self.autoreset_mode, self._out
         stepping = ~restart
         ids = np.flatnonzero(stepping)
         self._steps[ids] += 1
-        self._elapsed[ids] += 1
         self._in_batch[ids] = True
         result = self._core.step(
             self._targets(array, ids), self._steps, self.envs[0].step_limit, self._sparse, ids
@@ -291,9 +285,7 @@ class BatchedVectorEnv(SoArmVectorBase):
         obs_rows = self._observations()
         infos = self._infos(self._sim, result.evaluation, result.success, result.terms)
         terminated = result.host_success & stepping
-        truncated = np.zeros(n, dtype=np.bool_)
-        if self.max_episode_steps is not None:
-            truncated = stepping & (self._elapsed >= self.max_episode_steps)
+        truncated = time_up.copy()
         last_obs = {i: [out.copy(a[i]) for a in self._obs_arrays] for i in sorted(reasons)}
         for array_, rows in zip(self._obs_arrays, obs_rows, strict=True):
             out.rows(array_, rows, ids)
@@ -308,7 +300,6 @@ class BatchedVectorEnv(SoArmVectorBase):
             obs, info = self._reset_one(i, None, None)
             self._write_obs(i, obs)
             rewards[i] = 0.0
-            self._elapsed[i] = 0
             infos = self._add_info(infos, info, i)
         if restart.any():
             self._backend.set_models()
@@ -452,7 +443,6 @@ class BatchedVectorEnv(SoArmVectorBase):
         for i in ended.tolist():
             obs, info = self._reset_one(i, None, None)
             self._write_obs(i, obs)
-            self._elapsed[i] = 0
             infos = self._add_info(infos, info, i)
         self._backend.set_models()
         if isinstance(self._out, TorchView):

@@ -41,173 +41,19 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 
 from gym_soarm.envs.env import SoArmEnv
-from gym_soarm.envs.infos import INFO_NUMBERS, InfoReader, InfoWriter, merge
+from gym_soarm.envs.infos import InfoReader, merge
 from gym_soarm.validation import check_choice, check_int
 from gym_soarm.vector.base import SoArmVectorBase, StepReturn
-from gym_soarm.vector.common import (
-    Leaf,
-    leaf_value,
-)
+from gym_soarm.vector.blocks import Block, Field, block_size, layout, views
+from gym_soarm.vector.common import Leaf
 from gym_soarm.vector.workers import START_METHODS, cpu_count, end_process, worker_context
-
-_Field = tuple[str, int, tuple[int, ...], str]  # name, byte offset, shape, dtype
 
 CLOSE_TIMEOUT_S = 10.0
 """How long ``close()`` waits for a worker to close its environments before ending it."""
 
-_ALIGN = 64  # byte alignment of each array in the shared block
-
 
 class WorkerDiedError(RuntimeError):
     """A worker process of :class:`SoArmVectorEnv` ended while the caller waited on it."""
-
-
-def _layout(num_envs: int, action_shape: tuple[int, ...], leaves: list[Leaf]) -> list[_Field]:
-    """Where each shared array lies in the shared block: actions, results, observations."""
-    fields: list[_Field] = []
-    offset = 0
-
-    def add(name: str, shape: tuple[int, ...], dtype: np.dtype | str) -> None:
-        nonlocal offset
-        dtype = np.dtype(dtype)
-        fields.append((name, offset, shape, dtype.str))
-        size = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
-        offset += -(-size // _ALIGN) * _ALIGN
-
-    add("actions", (num_envs, *action_shape), np.float64)  # what SoArmEnv.step converts to
-    add("rewards", (num_envs,), np.float64)
-    add("terminations", (num_envs,), np.bool_)
-    add("truncations", (num_envs,), np.bool_)
-    add("infos", (num_envs, INFO_NUMBERS), np.float64)
-    for index, (_, shape, dtype) in enumerate(leaves):
-        add(f"obs{index}", (num_envs, *shape), dtype)
-    return fields
-
-
-def _block_size(fields: list[_Field]) -> int:
-    _, offset, shape, dtype = fields[-1]
-    return max(_ALIGN, offset + int(np.prod(shape, dtype=np.int64)) * np.dtype(dtype).itemsize)
-
-
-def _views(block: Any, fields: list[_Field]) -> dict[str, np.ndarray]:
-    """Numpy arrays over the shared block, one per field of :func:`_layout`."""
-    buffer = memoryview(block).cast("B")
-    return {
-        name: np.ndarray(shape, np.dtype(dtype), buffer=buffer, offset=offset)
-        for name, offset, shape, dtype in fields
-    }
-
-
-class _Block:
-    """Environments ``first, first + 1, ...`` of a vector env, stepped in turn.
-
-    Reads its actions from, and writes its results and observations into, the rows
-    ``first .. first + len(envs) - 1`` of the shared arrays. It runs in a worker process
-    (or in the caller's own); the batching happens in the caller.
-    """
-
-    def __init__(
-        self,
-        envs: list[SoArmEnv],
-        first: int,
-        arrays: dict[str, np.ndarray],
-        leaves: list[Leaf],
-        max_episode_steps: int | None,
-        autoreset_mode: AutoresetMode,
-    ) -> None:
-        self.envs = envs
-        self.rows = range(first, first + len(envs))
-        self.arrays = arrays
-        self.paths = [path for path, _, _ in leaves]
-        self.obs = [arrays[f"obs{k}"] for k in range(len(leaves))]
-        self.limit = max_episode_steps
-        self.mode = autoreset_mode
-        self.elapsed = [0] * len(envs)
-        self.needs_reset = [False] * len(envs)
-        self.info_writer = InfoWriter(arrays["infos"], self.rows)
-
-    def _write_obs(self, row: int, obs: Any) -> None:
-        for path, array in zip(self.paths, self.obs, strict=True):
-            array[row] = leaf_value(obs, path)
-
-    def reset(
-        self, seeds: list[int | None], options: dict[str, Any] | None, mask: list[bool] | None
-    ) -> list[dict[str, Any] | None]:
-        infos: list[dict[str, Any] | None] = [None] * len(self.envs)
-        for k, row in enumerate(self.rows):
-            if mask is not None and not mask[k]:
-                continue
-            obs, info = self.envs[k].reset(seed=seeds[k], options=options)
-            self.elapsed[k] = 0
-            self.needs_reset[k] = False
-            self._write_obs(row, obs)
-            infos[k] = info
-        return infos
-
-    def step(self) -> tuple[tuple[Any, ...], dict[int, tuple[Any, dict[str, Any]]]]:
-        """Step every environment; its infos (as :meth:`InfoWriter.write` sends them)
-        and, in ``SAME_STEP``, the ended episodes' last observations and infos keyed by
-        environment index."""
-        actions = self.arrays["actions"]
-        rewards = self.arrays["rewards"]
-        terms = self.arrays["terminations"]
-        truncs = self.arrays["truncations"]
-        infos: list[dict[str, Any]] = []
-        finals: dict[int, tuple[Any, dict[str, Any]]] = {}
-        limit, mode, elapsed = self.limit, self.mode, self.elapsed
-        for k, row in enumerate(self.rows):
-            env = self.envs[k]
-            if mode is AutoresetMode.NEXT_STEP and self.needs_reset[k]:
-                obs, info = env.reset()
-                elapsed[k] = 0
-                rewards[row] = 0.0
-                terms[row] = truncs[row] = False
-                self.needs_reset[k] = False
-            else:
-                obs, reward, terminated, truncated, info = env.step(actions[row])
-                elapsed[k] += 1
-                if limit is not None and elapsed[k] >= limit:
-                    truncated = True
-                rewards[row] = reward
-                terms[row] = terminated
-                truncs[row] = truncated
-                if terminated or truncated:
-                    if mode is AutoresetMode.SAME_STEP:
-                        finals[row] = (obs, info)
-                        obs, info = env.reset()
-                        elapsed[k] = 0
-                    else:
-                        self.needs_reset[k] = True
-            self._write_obs(row, obs)
-            infos.append(info)
-        return self.info_writer.write(infos), finals
-
-    def call(
-        self,
-        name: str,
-        args: tuple[Any, ...],
-        kwargs: dict[str, Any],
-        mask: list[bool] | None = None,
-    ) -> list[Any]:
-        results = []
-        for k, env in enumerate(self.envs):
-            if mask is not None and not mask[k]:
-                results.append(None)
-                continue
-            attribute = getattr(env, name)
-            results.append(attribute(*args, **kwargs) if callable(attribute) else attribute)
-        return results
-
-    def get_attr(self, name: str) -> list[Any]:
-        return [getattr(env, name) for env in self.envs]
-
-    def set_attr(self, name: str, values: list[Any]) -> None:
-        for env, value in zip(self.envs, values, strict=True):
-            setattr(env, name, value)
-
-    def close(self) -> None:
-        for env in self.envs:
-            env.close()
 
 
 def _portable(exc: BaseException) -> BaseException:
@@ -234,18 +80,17 @@ def _make_envs(count: int, env_kwargs: dict[str, Any]) -> list[SoArmEnv]:
 def _worker_main(
     conn: Connection,
     block: Any,
-    fields: list[_Field],
+    fields: list[Field],
     leaves: list[Leaf],
     first: int,
     count: int,
     spec: Any,
     env_kwargs: dict[str, Any],
-    max_episode_steps: int | None,
     autoreset_mode: AutoresetMode,
 ) -> None:
     """A worker process: build ``count`` environments, then serve the caller's commands.
 
-    Each command ``(name, args)`` is a method of :class:`_Block`; the reply is
+    Each command ``(name, args)`` is a method of :class:`~gym_soarm.vector.blocks.Block`; the reply is
     ``("ok", result)`` or ``("error", exception, traceback text)``. ``"close"`` closes
     the environments, replies and ends the process.
     """
@@ -255,12 +100,11 @@ def _worker_main(
     try:
         if spec.name not in task_names():
             register_task(spec)  # a task registered by the caller's own code
-        runner = _Block(
+        runner = Block(
             _make_envs(count, env_kwargs),
             first,
-            _views(block, fields),
+            views(block, fields),
             leaves,
-            max_episode_steps,
             autoreset_mode,
         )
     except Exception as exc:  # handed to the caller, which raises it
@@ -382,7 +226,7 @@ class SoArmVectorEnv(SoArmVectorBase):
         # The first environment checks every argument here and gives the spaces.
         first = SoArmEnv(**env_kwargs)
         self._take_spaces(first)
-        fields = _layout(num_envs, self.single_action_space.shape, self._leaves)
+        fields = layout(num_envs, self.single_action_space.shape, self._leaves)
 
         # Block sizes differ by one at most; this process takes a smallest one, as it
         # also batches the results.
@@ -390,18 +234,16 @@ class SoArmVectorEnv(SoArmVectorBase):
         context = None
         if num_processes > 1:
             context = worker_context(start_method, preload=[__name__])
-            self._block_memory: Any = context.RawArray(ctypes.c_uint8, _block_size(fields))
+            self._block_memory: Any = context.RawArray(ctypes.c_uint8, block_size(fields))
         else:
-            self._block_memory = bytearray(_block_size(fields))
-        self._arrays = _views(self._block_memory, fields)
+            self._block_memory = bytearray(block_size(fields))
+        self._arrays = views(self._block_memory, fields)
         try:
             envs = [first, *_make_envs(sizes[0] - 1, env_kwargs)]
         except BaseException:
             first.close()
             raise
-        self._local = _Block(
-            envs, 0, self._arrays, self._leaves, max_episode_steps, self.autoreset_mode
-        )
+        self._local = Block(envs, 0, self._arrays, self._leaves, self.autoreset_mode)
         self._rows = [self._local.rows]
         if context is not None:
             try:
@@ -420,7 +262,7 @@ class SoArmVectorEnv(SoArmVectorBase):
         self,
         context: Any,
         sizes: list[int],
-        fields: list[_Field],
+        fields: list[Field],
         spec: Any,
         env_kwargs: dict[str, Any],
     ) -> None:
@@ -440,7 +282,6 @@ class SoArmVectorEnv(SoArmVectorBase):
                         size,
                         spec,
                         env_kwargs,
-                        self.max_episode_steps,
                         self.autoreset_mode,
                     ),
                     daemon=True,
@@ -475,7 +316,7 @@ class SoArmVectorEnv(SoArmVectorBase):
         args: Sequence[tuple[Any, ...]],
         partial: Callable[[list[Any]], None] | None = None,
     ) -> list[Any]:
-        """Run ``_Block.<name>(*args[p])`` for every block (this process's is block 0) at
+        """Run ``Block.<name>(*args[p])`` for every block (this process's is block 0) at
         once; the results in block order.
 
         Every worker answers before anything is raised, so the pipes stay in step; when a
@@ -586,14 +427,16 @@ class SoArmVectorEnv(SoArmVectorBase):
         self._arrays["truncations"][reset] = False
         return merge(infos, self._all_true, self._add_info)
 
-    def _step(self, actions: np.ndarray) -> StepReturn:
+    def _step(self, actions: np.ndarray, restart: np.ndarray, time_up: np.ndarray) -> StepReturn:
         """One step of every block at once, each in its process (the blocks apply the
-        time limit and the autoreset to their environments).
+        clock's plan, read from the shared memory, to their environments).
 
         Raises:
             WorkerDiedError: a worker process ended; the vector env is closed.
         """
         self._arrays["actions"][...] = actions
+        self._arrays["restart"][...] = restart
+        self._arrays["time_up"][...] = time_up
         messages = []
         finals: dict[int, tuple[Any, dict[str, Any]]] = {}
         parts = self._ask("step", [()] * self.num_processes, partial=self._after_failed_step)
@@ -611,9 +454,11 @@ class SoArmVectorEnv(SoArmVectorBase):
 
     def _after_failed_step(self, parts: list[Any]) -> None:
         """A block raised during a step: keep what the others sent (their new info
-        layouts, their episodes' ends), so the next step reads them right."""
+        layouts, their episodes' ends), so the next step reads them right. The clock
+        counts the step for every environment that was to step."""
         self._info_reader.note([None if part is None else part[0] for part in parts])
-        self._autoreset_envs = self._arrays["terminations"] | self._arrays["truncations"]
+        arrays = self._arrays
+        self._note_ends(arrays["restart"].copy(), arrays["terminations"], arrays["truncations"])
 
     # --- calls and attributes (arguments and results travel between processes: they
     # must pickle) ---------------------------------------------------------------------------
