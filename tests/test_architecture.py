@@ -299,7 +299,6 @@ lines, the most they may have."""
 LONG_MODULES: dict[str, int] = {
     "gym_soarm/data/writer.py": 735,
     "gym_soarm/envs/control.py": 678,
-    "gym_soarm/vector/processes.py": 645,
 }
 """Modules over MODULE_BUDGET lines today -> their lines, the most they may have."""
 
@@ -414,11 +413,6 @@ def test_the_function_budget_goal():
     assert max(sizes.values(), default=0) <= FUNCTION_CEILING, sorted(sizes.items())
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="SPEC 29's goal, not reached yet: split the allowlisted modules; when it passes, "
-    "remove this mark",
-)
 def test_the_module_budget_goal():
     assert len(long_modules()) <= MODULES_OVER_BUDGET_GOAL, sorted(long_modules())
 
