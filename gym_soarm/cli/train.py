@@ -173,6 +173,65 @@ IMITATION_REFUSED: dict[str, str] = {
 """The PPO and SAC flags an imitation run refuses, and why."""
 
 
+def _run_imitation(args: argparse.Namespace) -> Any:
+    """``--algo bc`` or ``dagger``, refusing the flags of the RL trainers."""
+    for flag, value in (
+        ("--steps", args.steps),
+        ("--eval-every", args.eval_every),
+        ("--vec-env", args.vec_env),
+        ("--vector-env", args.vector_env),
+        ("--init", args.init),
+    ):
+        if value is not None:
+            raise ValueError(
+                f"{flag} does not apply to --algo {args.algo}: "
+                f"{IMITATION_REFUSED[flag]}. Drop {flag}."
+            )
+    from gym_soarm.rl.imitation import train_imitation
+
+    return train_imitation(
+        args.algo,
+        args.task,
+        args.out,
+        seed=args.seed,
+        eval_episodes=args.eval_episodes,
+        hyperparams=dict(args.hyperparams),
+        env=env_changes(args),
+        device=args.device,
+    )
+
+
+def _run_rl(args: argparse.Namespace) -> Any:
+    """``--algo ppo`` or ``sac`` (from the state vector), refusing the pixel flags."""
+    pixel_flags = sorted(set(env_changes(args)) & set(PIXEL_SETTINGS))
+    if pixel_flags or (args.device != "cpu" and args.vector_env is None):
+        given = pixel_flags or ["device"]
+        raise ValueError(
+            f"--algo {args.algo} learns from the state vector; "
+            f"{', '.join('--' + name.replace('_', '-') for name in given)} "
+            "apply to pixel students (--algo bc or dagger with --obs-type "
+            "pixels_agent_pos). Drop them."
+        )
+    from gym_soarm.rl.training import train
+
+    return train(
+        args.algo,
+        args.task,
+        args.out,
+        seed=args.seed,
+        steps=args.steps,
+        eval_every=args.eval_every,
+        eval_episodes=args.eval_episodes,
+        progress_bar=not args.no_progress,
+        hyperparams=dict(args.hyperparams),
+        vec_env=args.vec_env,
+        init=args.init,
+        env=env_changes(args),
+        vector_env=args.vector_env,
+        device=args.device,
+    )
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Train; 0 when the run finished, 130 when Ctrl-C stopped it (checkpoint kept)."""
     parser = build_parser()
@@ -186,59 +245,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             stacklevel=1,
         )
     try:
-        if args.algo in IMITATION:
-            for flag, value in (
-                ("--steps", args.steps),
-                ("--eval-every", args.eval_every),
-                ("--vec-env", args.vec_env),
-                ("--vector-env", args.vector_env),
-                ("--init", args.init),
-            ):
-                if value is not None:
-                    raise ValueError(
-                        f"{flag} does not apply to --algo {args.algo}: "
-                        f"{IMITATION_REFUSED[flag]}. Drop {flag}."
-                    )
-            from gym_soarm.rl.imitation import train_imitation
-
-            result = train_imitation(
-                args.algo,
-                args.task,
-                args.out,
-                seed=args.seed,
-                eval_episodes=args.eval_episodes,
-                hyperparams=dict(args.hyperparams),
-                env=env_changes(args),
-                device=args.device,
-            )
-        else:
-            pixel_flags = sorted(set(env_changes(args)) & set(PIXEL_SETTINGS))
-            if pixel_flags or (args.device != "cpu" and args.vector_env is None):
-                given = pixel_flags or ["device"]
-                raise ValueError(
-                    f"--algo {args.algo} learns from the state vector; "
-                    f"{', '.join('--' + name.replace('_', '-') for name in given)} "
-                    "apply to pixel students (--algo bc or dagger with --obs-type "
-                    "pixels_agent_pos). Drop them."
-                )
-            from gym_soarm.rl.training import train
-
-            result = train(
-                args.algo,
-                args.task,
-                args.out,
-                seed=args.seed,
-                steps=args.steps,
-                eval_every=args.eval_every,
-                eval_episodes=args.eval_episodes,
-                progress_bar=not args.no_progress,
-                hyperparams=dict(args.hyperparams),
-                vec_env=args.vec_env,
-                init=args.init,
-                env=env_changes(args),
-                vector_env=args.vector_env,
-                device=args.device,
-            )
+        result = _run_imitation(args) if args.algo in IMITATION else _run_rl(args)
     except (ValueError, TypeError) as exc:  # refused input: argparse's usage error, exit 2
         parser.error(str(exc))
     except ImportError as exc:  # a missing extra

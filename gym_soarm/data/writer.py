@@ -70,6 +70,7 @@ from gym_soarm.data.stats import (
     numeric_stats,
     stats_to_json,
 )
+from gym_soarm.data.tables import arrow_type, tasks_table
 from gym_soarm.data.video_files import (
     SegmentEncoder,
     concatenate_videos,
@@ -642,54 +643,12 @@ class LeRobotDatasetWriter:
         pa = self._pa
         import pyarrow.parquet as pq
 
-        # Tasks: the index column "task" as pandas writes it, so pandas.read_parquet
-        # returns the table indexed by the task sentence as LeRobot expects.
-        tasks = sorted(self._tasks.items(), key=lambda item: item[1])
-        pandas_metadata = {
-            "index_columns": ["task"],
-            "column_indexes": [
-                {
-                    "name": None,
-                    "field_name": None,
-                    "pandas_type": "unicode",
-                    "numpy_type": "object",
-                    "metadata": {"encoding": "UTF-8"},
-                }
-            ],
-            "columns": [
-                {
-                    "name": "task_index",
-                    "field_name": "task_index",
-                    "pandas_type": "int64",
-                    "numpy_type": "int64",
-                    "metadata": None,
-                },
-                {
-                    "name": "task",
-                    "field_name": "task",
-                    "pandas_type": "unicode",
-                    "numpy_type": "object",
-                    "metadata": None,
-                },
-            ],
-            "creator": {"library": "pyarrow", "version": pa.__version__},
-            "pandas_version": "2.2.0",
-        }
-        schema = pa.schema(
-            [pa.field("task_index", pa.int64()), pa.field("task", pa.string())],
-            metadata={"pandas": json.dumps(pandas_metadata)},
-        )
-        task_table = pa.Table.from_arrays(
-            [pa.array([i for _, i in tasks], pa.int64()), pa.array([t for t, _ in tasks])],
-            schema=schema,
-        )
+        task_table = tasks_table(pa, self._tasks)
         # Explicit column types: pyarrow's type inference is slow (it tries optional imports).
         columns = list(self._episodes[0])
         episodes_table = pa.Table.from_arrays(
             [
-                pa.array(
-                    [row[c] for row in self._episodes], _python_arrow_type(pa, self._episodes[0][c])
-                )
+                pa.array([row[c] for row in self._episodes], arrow_type(pa, self._episodes[0][c]))
                 for c in columns
             ],
             names=columns,
@@ -709,19 +668,6 @@ class LeRobotDatasetWriter:
             os.replace(path, target)
         _write_json_atomically(self.root / STATS_PATH, self._dataset_stats(), self._scratch)
         self._write_info()
-
-
-def _python_arrow_type(pa: Any, value: Any) -> Any:
-    """The arrow type of an episodes-table value: int, float, str or nested lists of them."""
-    if isinstance(value, bool):
-        return pa.bool_()
-    if isinstance(value, int):
-        return pa.int64()
-    if isinstance(value, float):
-        return pa.float64()
-    if isinstance(value, str):
-        return pa.string()
-    return pa.list_(_python_arrow_type(pa, value[0]))
 
 
 def _safe(key: str) -> str:
