@@ -9,10 +9,8 @@ from __future__ import annotations
 import csv
 import json
 import os
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +21,8 @@ if os.environ.get("GYM_SOARM_REQUIRE_RL") != "1":
         "stable_baselines3", reason='needs the rl extra: pip install "gym-soarm[rl]"'
     )
     pytest.importorskip("torch", reason='needs the rl extra: pip install "gym-soarm[rl]"')
+
+from interrupt import interrupt_when
 
 from gym_soarm.expert import make_expert
 from gym_soarm.rl.evaluation import TrainedPolicy, make_env, read_settings, score
@@ -239,30 +239,19 @@ def test_the_imitation_recipes_are_complete():
 
 def test_ctrl_c_keeps_the_last_checkpoint_and_curve(tmp_path):
     out = tmp_path / "run"
-    process = subprocess.Popen(
+    done = interrupt_when(
         [
             sys.executable, "-m", "gym_soarm.train", "--algo", "dagger", "--task", "reach",
             "--eval-episodes", "1", "--out", str(out), "--hyperparams", "demos=3", "epochs=2",
             "rounds=99", "episodes_per_round=2", "round_epochs=50",
         ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
+        lambda _: (out / "curve.csv").is_file(),
+        within_s=120,
+        then_s=0.5,
+        what="a checkpoint",
     )  # fmt: skip
-    try:
-        deadline = time.monotonic() + 120
-        while not (out / "curve.csv").is_file():
-            assert process.poll() is None, process.communicate()
-            assert time.monotonic() < deadline, "no checkpoint within 120 s"
-            time.sleep(0.2)
-        time.sleep(0.5)
-        process.send_signal(signal.SIGINT)
-        stdout, stderr = process.communicate(timeout=60)
-    finally:
-        if process.poll() is None:
-            process.kill()
-    assert process.returncode == 130, stderr
-    assert "interrupted" in stdout
+    assert done.returncode == 130, done.stderr
+    assert "interrupted" in done.stdout
     for name in ("model.zip", "curve.csv", "curve.png", "settings.json", "demos.npz"):
         assert (out / name).is_file(), name
     TrainedPolicy(out)  # the kept checkpoint loads

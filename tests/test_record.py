@@ -3,16 +3,14 @@
 from __future__ import annotations
 
 import os
-import signal
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import pytest
 from dataset_files import decode_video, psnr, read_dataset
+from interrupt import interrupt_when
 
 from gym_soarm.cli.record import main
 from gym_soarm.expert import make_expert
@@ -315,23 +313,15 @@ def test_ctrl_c_keeps_the_finished_episodes(tmp_path):
         str(root),
         "--no-progress",
     ]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
-            info = root / "meta/info.json"
-            if info.is_file() and '"total_episodes": 2' in info.read_text():
-                break
-            time.sleep(0.05)
-        else:
-            pytest.fail("the recorder did not save two episodes in time")
-        process.send_signal(signal.SIGINT)
-        out, err = process.communicate(timeout=60)
-    finally:
-        if process.poll() is None:
-            process.kill()
-    assert process.returncode == 130, err
-    assert out.startswith("interrupted:")
+    info = root / "meta/info.json"
+    done = interrupt_when(
+        command,
+        lambda _: info.is_file() and '"total_episodes": 2' in info.read_text(),
+        within_s=120,
+        what="two saved episodes",
+    )
+    assert done.returncode == 130, done.stderr
+    assert done.stdout.startswith("interrupted:")
     ds = read_dataset(root)
     assert ds.info["total_episodes"] >= 2
     assert len(ds.data["index"]) == ds.info["total_frames"] == sum(r["length"] for r in ds.episodes)

@@ -17,6 +17,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 from dataset_files import decode_video
+from interrupt import interrupt_when
 
 from gym_soarm.cli.record import build_parser
 from gym_soarm.data.format import SCRATCH_DIR
@@ -125,22 +126,17 @@ def test_ctrl_c_keeps_every_finished_episode(tmp_path):
         *("--episodes", "50", "--seed", "0", "--root", str(root), "--no-progress"),
         *("--camera-config", "none", "--workers", "2"),
     ]
-    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 240
-        info = root / "meta" / "info.json"
-        while time.monotonic() < deadline and proc.poll() is None:
-            if info.exists() and json.loads(info.read_text())["total_episodes"] >= 2:
-                break
-            time.sleep(0.05)
-        proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=120)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 130, err
+    info = root / "meta" / "info.json"
+    done = interrupt_when(
+        command,
+        lambda _: info.exists() and json.loads(info.read_text())["total_episodes"] >= 2,
+        within_s=240,
+        answer_s=120,
+        what="two saved episodes",
+    )
+    assert done.returncode == 130, done.stderr
     saved = json.loads(info.read_text())
-    assert saved["total_episodes"] >= 2 and f"{saved['total_episodes']} episodes" in out
+    assert saved["total_episodes"] >= 2 and f"{saved['total_episodes']} episodes" in done.stdout
     episodes = pq.read_table(root / "meta" / "episodes" / "chunk-000" / "file-000.parquet")
     assert episodes.column("episode_index").to_pylist() == list(range(saved["total_episodes"]))
     data = pq.read_table(root / "data" / "chunk-000" / "file-000.parquet")

@@ -7,10 +7,8 @@ from __future__ import annotations
 import csv
 import json
 import os
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +18,8 @@ if os.environ.get("GYM_SOARM_REQUIRE_RL") != "1":
     pytest.importorskip(
         "stable_baselines3", reason='needs the rl extra: pip install "gym-soarm[rl]"'
     )
+
+from interrupt import interrupt_when
 
 from gym_soarm.rl.evaluation import TrainedPolicy, read_settings, score
 from gym_soarm.rl.hyperparams import ALGORITHMS, HYPERPARAMS, recipe
@@ -195,30 +195,20 @@ def test_evaluate_refuses_what_is_not_our_policy(tmp_path, trained_reach):
 
 def test_ctrl_c_keeps_the_last_checkpoint_and_curve(tmp_path):
     out = tmp_path / "run"
-    process = subprocess.Popen(
+    done = interrupt_when(
         [
             sys.executable, "-m", "gym_soarm.train", "--algo", "ppo", "--task", "reach",
             "--steps", "10000000", "--eval-every", "2048", "--eval-episodes", "1",
             "--out", str(out), "--no-progress",
         ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
+        lambda _: (out / "curve.csv").is_file(),
+        within_s=300,
+        then_s=1.0,
+        answer_s=120,
+        what="a checkpoint",
     )  # fmt: skip
-    try:
-        deadline = time.monotonic() + 300
-        while not (out / "curve.csv").is_file():
-            assert process.poll() is None, process.communicate()
-            assert time.monotonic() < deadline, "no checkpoint within 300 s"
-            time.sleep(0.5)
-        time.sleep(1.0)
-        process.send_signal(signal.SIGINT)
-        stdout, stderr = process.communicate(timeout=120)
-    finally:
-        if process.poll() is None:
-            process.kill()
-    assert process.returncode == 130, stderr
-    assert "interrupted" in stdout
+    assert done.returncode == 130, done.stderr
+    assert "interrupted" in done.stdout
     for name in ("model.zip", "curve.csv", "curve.png", "settings.json"):
         assert (out / name).is_file(), name
     TrainedPolicy(out)  # the kept checkpoint loads

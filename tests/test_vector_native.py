@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from conftest import SMALL
 from gymnasium.vector import AutoresetMode
+from interrupt import interrupt_when
 
 import gym_soarm
 from gym_soarm.vector.batched import BatchedVectorEnv
@@ -394,19 +395,16 @@ if __name__ == "__main__":
 def test_ctrl_c_in_the_middle_of_a_step_closes_the_vector_env(tmp_path):
     script = tmp_path / "ctrl_c.py"
     script.write_text(CTRL_C_SCRIPT)
-    proc = subprocess.Popen(
-        [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    pids: list[int] = []
+
+    def stepping(process) -> bool:  # the script's first line names its workers
+        first = process.stdout.readline()
+        pids.extend(int(p) for p in first.split()[1:])
+        return first.startswith("pids")
+
+    done = interrupt_when(
+        [sys.executable, str(script)], stepping, within_s=120, then_s=0.5, what="its workers"
     )
-    try:
-        first = proc.stdout.readline()
-        assert first.startswith("pids"), proc.stderr.read()
-        pids = [int(p) for p in first.split()[1:]]
-        time.sleep(0.5)
-        proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert "interrupted and closed" in out, err
-    assert proc.returncode == 0, err
-    assert not any(_alive(pid) for pid in pids)
+    assert "interrupted and closed" in done.stdout, done.stderr
+    assert done.returncode == 0, done.stderr
+    assert pids and not any(_alive(pid) for pid in pids)
