@@ -16,6 +16,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
+from same import assert_same
 
 import gym_soarm
 from gym_soarm.expert import make_expert
@@ -36,30 +37,6 @@ def _vec(task: str, n: int, vector_env: str, **kwargs):
         vector_env=vector_env,
         **kwargs,
     )
-
-
-def assert_same(a, b, path: str = "") -> None:
-    """Equal values, dtypes and shapes, recursively (dicts, object arrays, arrays)."""
-    if isinstance(a, dict):
-        assert set(a) == set(b), (path, sorted(set(a) ^ set(b)))
-        for key in a:
-            assert_same(a[key], b[key], f"{path}/{key}")
-        return
-    if isinstance(a, tuple):
-        assert len(a) == len(b), path
-        for k, (x, y) in enumerate(zip(a, b, strict=True)):
-            assert_same(x, y, f"{path}[{k}]")
-        return
-    a, b = np.asarray(a), np.asarray(b)
-    assert (a.dtype, a.shape) == (b.dtype, b.shape), (path, a.dtype, b.dtype, a.shape, b.shape)
-    if a.dtype == object:
-        for x, y in zip(a.ravel(), b.ravel(), strict=True):
-            if isinstance(x, (dict, np.ndarray)):
-                assert_same(x, y, f"{path}[]")
-            else:
-                assert x == y, (path, x, y)
-    else:
-        np.testing.assert_array_equal(a, b, err_msg=path)
 
 
 @pytest.mark.parametrize("task", TASKS)

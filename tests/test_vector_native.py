@@ -8,7 +8,6 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -16,87 +15,13 @@ import pytest
 from conftest import SMALL
 from gymnasium.vector import AutoresetMode
 from interrupt import interrupt_when
+from same import assert_same, compare_with_sync
 
 import gym_soarm
-from gym_soarm.vector.batched import BatchedVectorEnv
 from gym_soarm.vector.processes import SoArmVectorEnv, WorkerDiedError
 
 ENV_ID = "gym_soarm/LiftCube-v0"
 STATE = {"obs_type": "environment_state_agent_pos"}
-
-
-def assert_same(a: Any, b: Any, where: str = "") -> None:
-    """Equal structure, types, dtypes, shapes and bits."""
-    if isinstance(a, tuple):
-        assert isinstance(b, tuple) and len(a) == len(b), where
-        for i, (x, y) in enumerate(zip(a, b, strict=True)):
-            assert_same(x, y, f"{where}[{i}]")
-        return
-    if isinstance(a, dict):
-        assert isinstance(b, dict) and set(a) == set(b), (where, set(a) ^ set(b))
-        for key in a:
-            assert_same(a[key], b[key], f"{where}/{key}")
-        return
-    if isinstance(a, np.ndarray) and a.dtype == object:
-        assert isinstance(b, np.ndarray) and b.dtype == object and a.shape == b.shape, where
-        for i, (x, y) in enumerate(zip(a, b, strict=True)):
-            if isinstance(x, (dict, np.ndarray)):
-                assert_same(x, y, f"{where}[{i}]")
-            else:
-                assert x == y, (where, i, x, y)
-        return
-    a, b = np.asarray(a), np.asarray(b)
-    assert a.dtype == b.dtype and a.shape == b.shape, (where, a.dtype, b.dtype, a.shape, b.shape)
-    assert np.array_equal(a, b), (where, a, b)
-
-
-def compare_with_sync(
-    num_envs: int,
-    steps: int,
-    seed: int,
-    mode: AutoresetMode,
-    num_processes: int | None = None,
-    vector_env: str = "processes",
-    **kwargs: Any,
-) -> list[np.ndarray]:
-    """Step the native (``vector_env``) and the synchronous vector envs with the same
-    actions; return the done flags of each step."""
-    native = gym.make_vec(
-        ENV_ID,
-        num_envs=num_envs,
-        vectorization_mode="vector_entry_point",
-        autoreset_mode=mode,
-        num_processes=num_processes,
-        vector_env=vector_env,
-        **kwargs,
-    )
-    sync = gym.make_vec(
-        ENV_ID,
-        num_envs=num_envs,
-        vectorization_mode="sync",
-        vector_kwargs={"autoreset_mode": mode},
-        **kwargs,
-    )
-    dones = []
-    try:
-        expected = SoArmVectorEnv if vector_env == "processes" else BatchedVectorEnv
-        assert isinstance(native.unwrapped, expected)
-        assert native.metadata["autoreset_mode"] == mode
-        assert native.observation_space == sync.observation_space
-        assert native.action_space == sync.action_space
-        assert_same(native.reset(seed=seed), sync.reset(seed=seed), "reset")
-        rng = np.random.default_rng(seed)
-        space = native.single_action_space
-        for t in range(steps):
-            actions = rng.uniform(space.low, space.high, (num_envs, 6)).astype(np.float32)
-            got, want = native.step(actions), sync.step(actions)
-            for name, x, y in zip(("obs", "rew", "term", "trunc", "info"), got, want, strict=True):
-                assert_same(x, y, f"step {t} {name}")
-            dones.append(got[2] | got[3])
-    finally:
-        native.close()
-        sync.close()
-    return dones
 
 
 def test_every_id_has_the_vector_entry_point():
@@ -104,25 +29,16 @@ def test_every_id_has_the_vector_entry_point():
         assert gym.spec(env_id).vector_entry_point == "gym_soarm.vector.batched:make_vector_env"
 
 
-@pytest.mark.parametrize("vector_env", ["processes", "batched"])
-def test_state_next_step_matches_single_envs_bit_for_bit(vector_env):
-    dones = compare_with_sync(
-        3, 40, 7, AutoresetMode.NEXT_STEP, max_episode_steps=12, vector_env=vector_env, **STATE
-    )
-    assert sum(d.all() for d in dones) >= 3  # several episodes ended and were reset
-
-
-@pytest.mark.parametrize("vector_env", ["processes", "batched"])
-def test_state_same_step_matches_single_envs_bit_for_bit(vector_env):
-    dones = compare_with_sync(
-        2, 30, 3, AutoresetMode.SAME_STEP, max_episode_steps=10, vector_env=vector_env, **STATE
-    )
-    assert sum(d.all() for d in dones) == 3
-
-
 def test_pixels_match_single_envs_bit_for_bit():
     dones = compare_with_sync(
-        2, 9, 5, AutoresetMode.NEXT_STEP, max_episode_steps=4, camera_config="front_wrist", **SMALL
+        ENV_ID,
+        2,
+        9,
+        5,
+        AutoresetMode.NEXT_STEP,
+        max_episode_steps=4,
+        camera_config="front_wrist",
+        **SMALL,
     )
     assert sum(d.all() for d in dones) == 2
 
@@ -130,14 +46,14 @@ def test_pixels_match_single_envs_bit_for_bit():
 def test_uneven_blocks_over_two_processes_match_single_envs_bit_for_bit():
     # 5 environments in 2 processes: this one steps 2, the worker 3.
     dones = compare_with_sync(
-        5, 30, 11, AutoresetMode.SAME_STEP, max_episode_steps=7, num_processes=2, **STATE
+        ENV_ID, 5, 30, 11, AutoresetMode.SAME_STEP, max_episode_steps=7, num_processes=2, **STATE
     )
     assert sum(d.all() for d in dones) == 4
 
 
 def test_every_environment_in_this_process_matches_single_envs_bit_for_bit():
     dones = compare_with_sync(
-        3, 25, 2, AutoresetMode.NEXT_STEP, max_episode_steps=6, num_processes=1, **STATE
+        ENV_ID, 3, 25, 2, AutoresetMode.NEXT_STEP, max_episode_steps=6, num_processes=1, **STATE
     )
     assert sum(d.all() for d in dones) >= 3
 
@@ -254,33 +170,6 @@ def _alive(pid: int) -> bool:
     except ProcessLookupError:
         return False
     return True
-
-
-def test_disabled_mode_and_reset_mask():
-    envs = gym.make_vec(
-        ENV_ID,
-        num_envs=2,
-        vectorization_mode="vector_entry_point",
-        autoreset_mode="Disabled",
-        max_episode_steps=3,
-        **STATE,
-    )
-    try:
-        envs.reset(seed=1)
-        zeros = np.zeros((2, 6), np.float32)
-        for _ in range(3):
-            *_, truncated, _ = envs.step(zeros)
-        assert truncated.all()
-        with pytest.raises(RuntimeError, match="reset_mask"):
-            envs.step(zeros)
-        _, info = envs.reset(options={"reset_mask": np.array([True, False])})
-        assert info["_is_success"].tolist() == [True, False]
-        with pytest.raises(RuntimeError, match=r"\[1\]"):
-            envs.step(zeros)
-        envs.reset(options={"reset_mask": np.array([False, True])})
-        envs.step(zeros)
-    finally:
-        envs.close()
 
 
 def test_close_closes_every_env_and_ends_every_worker():
