@@ -254,6 +254,7 @@ def documented_programs(files: list[Path] | None = None) -> list[str]:
     return sorted(set(re.findall(r"python -m (gym_soarm(?:\.\w+)+)", text)))
 
 
+@pytest.mark.subprocess
 @pytest.mark.parametrize("module", documented_programs())
 def test_every_python_m_name_of_the_docs_runs(module):
     result = subprocess.run(
@@ -438,3 +439,23 @@ def test_the_budget_measures_count_code_lines_only(tmp_path):
         "b: 9 lines, allowed at most 8: make it shorter",
         "c: within budget now; take it off the allowlist",
     ]
+
+
+TEST_FOLDERS_ALIASES = {"to_lerobot": "lerobot"}
+"""Test folders not named as their package folder: ``tests/lerobot`` would be found by
+``importlib.util.find_spec("lerobot")`` (a namespace package) where LeRobot is absent."""
+
+
+def test_the_tests_mirror_the_package():
+    # Each test module lives at the top of tests/ (the whole package: README, examples,
+    # formats, architecture) or in the folder of the package folder it tests.
+    tests = Path(__file__).resolve().parent
+    packages = {p.name for p in PACKAGE.iterdir() if any(p.glob("*.py"))}
+    folders = {p.parent for p in tests.rglob("test_*.py")} - {tests}
+    for folder in folders:
+        assert folder.parent == tests, f"{folder}: one level below tests/, as the package"
+        name = TEST_FOLDERS_ALIASES.get(folder.name, folder.name)
+        assert name in packages, f"tests/{folder.name} has no gym_soarm/{name} to mirror"
+    assert len(folders) >= 10
+    names = [p.name for p in tests.rglob("test_*.py")]
+    assert len(names) == len(set(names)), "test module names must be unique (pytest imports)"

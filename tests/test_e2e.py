@@ -17,6 +17,8 @@ from gym_soarm import constants
 from gym_soarm.sim import meshes
 from gym_soarm.tasks import cube, placement
 
+pytestmark = pytest.mark.gl
+
 ALL_IDS = list(gym_soarm.TASK_ENV_IDS)
 # Actions are absolute joint targets in radians bounded by the servo ranges (by design),
 # so Gymnasium's advice to normalise the action Box to [-1, 1] does not apply.

@@ -29,6 +29,7 @@ def test_same_seed_twice_in_one_process_gives_the_same_episodes(task, first_run)
     assert hashes.episode_hash(task) == first_run[task]
 
 
+@pytest.mark.subprocess
 def test_a_fresh_process_gives_the_same_episodes(first_run):
     out = subprocess.run(
         [sys.executable, "-m", "gym_soarm.cli.episode_hashes", "print"],

@@ -13,6 +13,8 @@ import pytest
 from mp4 import read_video
 from xwindows import find_windows, require_window_tools, wait_for, window_size
 
+pytestmark = pytest.mark.gl
+
 SCRIPT = Path(__file__).resolve().parents[1] / "examples" / "example.py"
 SMALL = ["--height", "48", "--width", "64", "--quality", "fast"]
 VIDEO_NAME = re.compile(r"^(overview|front|wrist)_camera_(\d{8}_\d{6})(_ep\d{2})?\.mp4$")
@@ -46,6 +48,7 @@ def check_video(path: Path, frames: int, height: int = 48, width: int = 64) -> N
     assert decoded.std() > 5.0  # a rendered scene, not a blank frame
 
 
+@pytest.mark.subprocess
 def test_random_policy_writes_both_videos_named_by_camera_and_time(tmp_path):
     before = time.strftime("%Y%m%d_%H%M%S")
     result = run_example(
@@ -69,6 +72,7 @@ def test_random_policy_writes_both_videos_named_by_camera_and_time(tmp_path):
     assert "%" in result.stderr  # the progress bar
 
 
+@pytest.mark.subprocess
 def test_default_policy_is_the_expert_and_stops_after_success(tmp_path):
     result = run_example(
         *SMALL, "--camera-config", "front_only", "--grid-cell", "4", "--viewer", "off",
@@ -86,6 +90,7 @@ def test_default_policy_is_the_expert_and_stops_after_success(tmp_path):
     assert "1/1 episodes succeeded" in result.stdout
 
 
+@pytest.mark.subprocess
 def test_episodes_and_camera_config_flags(tmp_path):
     result = run_example(
         *SMALL, "--episodes", "2", "--steps", "4", "--camera-config", "all", "--policy",
@@ -101,6 +106,7 @@ def test_episodes_and_camera_config_flags(tmp_path):
             check_video(files[name], frames=5)
 
 
+@pytest.mark.subprocess
 def test_bad_flags_are_refused():
     result = run_example("--grid-cell", "9")
     assert result.returncode == 2
@@ -116,6 +122,7 @@ def test_bad_flags_are_refused():
     assert result.returncode == 2 and "--task" in result.stderr
 
 
+@pytest.mark.subprocess
 def test_the_default_run_is_the_fast_quality_and_any_task_can_be_chosen(tmp_path):
     result = run_example(
         "--height", "48", "--width", "64", "--steps", "3", "--policy", "random", "--viewer",
@@ -126,6 +133,7 @@ def test_the_default_run_is_the_fast_quality_and_any_task_can_be_chosen(tmp_path
     assert len(videos(tmp_path)) == 2
 
 
+@pytest.mark.subprocess
 def test_viewer_on_without_a_display_explains_and_writes_nothing(tmp_path):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     result = run_example(*SMALL, "--viewer", "on", "--output-dir", str(tmp_path), env=env)
@@ -134,6 +142,7 @@ def test_viewer_on_without_a_display_explains_and_writes_nothing(tmp_path):
     assert videos(tmp_path) == {}
 
 
+@pytest.mark.subprocess
 def test_viewer_auto_runs_headless_without_a_display(tmp_path):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     result = run_example(
@@ -144,6 +153,7 @@ def test_viewer_auto_runs_headless_without_a_display(tmp_path):
     assert len(videos(tmp_path)) == 2
 
 
+@pytest.mark.subprocess
 def test_viewer_on_shows_the_run_in_a_window(tmp_path):
     require_window_tools()
     out, err = tmp_path / "stdout.txt", tmp_path / "stderr.txt"

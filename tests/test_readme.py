@@ -92,6 +92,7 @@ def test_every_relative_link_leads_to_a_file_and_a_heading(page):
     assert not broken, f"{page.relative_to(ROOT)}: {broken}"
 
 
+@pytest.mark.subprocess
 def test_the_own_task_snippet_registers_a_task_whose_expert_succeeds(tmp_path):
     code = code_after("Your own task needs no edit of gym_soarm")
     code += (
@@ -106,6 +107,7 @@ def test_the_own_task_snippet_registers_a_task_whose_expert_succeeds(tmp_path):
     assert "success True" in result.stdout
 
 
+@pytest.mark.subprocess
 def test_the_vector_snippet_runs_when_pasted_into_a_script(tmp_path):
     code = code_after("Vector environments render in their workers")
     code = code.replace("num_envs=8", "num_envs=2")
@@ -117,6 +119,7 @@ def test_the_vector_snippet_runs_when_pasted_into_a_script(tmp_path):
     assert "(2, 96, 128, 3)" in result.stdout
 
 
+@pytest.mark.subprocess
 def test_the_quick_start_runs(tmp_path):
     code = code_after("## Quick start").replace("range(200)", "range(20)")
     code += "print(obs['agent_pos'].shape)\n"
@@ -126,6 +129,7 @@ def test_the_quick_start_runs(tmp_path):
     assert "(6,)" in result.stdout
 
 
+@pytest.mark.subprocess
 def test_the_readme_expert_snippet_succeeds(tmp_path):
     result = _run(code_after("The expert also drives any"), tmp_path)
     assert result.returncode == 0, result.stderr

@@ -30,6 +30,8 @@ from xwindows import (
 
 from gym_soarm import constants
 
+pytestmark = [pytest.mark.window, pytest.mark.gl]
+
 SCRIPT = Path(__file__).resolve().parents[1] / "examples" / "slider_control_final.py"
 HEIGHT, WIDTH = 240, 320
 RESET_ROW = len(constants.JOINT_NAMES)  # the Reset trackbar comes after the six joints
@@ -162,6 +164,7 @@ def test_closing_a_window_exits_cleanly(teleop):
     teleop.wait_for_event("exit", 1)
 
 
+@pytest.mark.subprocess
 def test_without_a_display_it_explains_and_exits():
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     result = subprocess.run(

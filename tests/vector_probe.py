@@ -1,6 +1,6 @@
 """Runs a small vector environment the way a training script would and prints a JSON report.
 
-``tests/test_vector.py`` starts this file in a subprocess with a timeout, so that a worker
+``tests/vector/test_vector.py`` starts this file in a subprocess with a timeout, so that a worker
 that hangs fails its test instead of blocking the suite::
 
     python tests/vector_probe.py --mode async --context fork --render-first

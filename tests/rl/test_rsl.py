@@ -28,6 +28,8 @@ from gym_soarm.rl.training import train
 from gym_soarm.tasks.suites import EVAL_SEED
 from gym_soarm.vector.batched import make_vector_env
 
+pytestmark = pytest.mark.train
+
 STATE = {"obs_type": "state", "normalize_actions": True, "control_mode": "joint_delta"}
 SMOKE = {"num_steps_per_env": 8, "num_mini_batches": 2}
 
@@ -122,6 +124,7 @@ def test_ppo_on_rsl_rl_trains_saves_and_evaluates(tmp_path):
     assert saved["actor_state_dict"].keys() == first["actor_state_dict"].keys()
 
 
+@pytest.mark.subprocess
 def test_the_program_trains_with_rsl_rl_and_evaluate_reads_the_folder(tmp_path):
     out = tmp_path / "cli"
     run = subprocess.run(

@@ -12,12 +12,14 @@ import os
 import signal
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 import vector_probe
+from paths import TESTS
 
-PROBE = Path(__file__).with_name("vector_probe.py")
+pytestmark = pytest.mark.gl
+
+PROBE = TESTS / "vector_probe.py"
 # Generous: spawn and forkserver workers import the package afresh on a loaded machine.
 STARTUP_TIMEOUT_S = 300
 # A fork worker that hangs on the parent's display would block forever; this bounds it.
@@ -77,6 +79,7 @@ def check_vector_report(report: dict) -> None:
         assert worker["agent_pos"] == reference["agent_pos"]
 
 
+@pytest.mark.subprocess
 @pytest.mark.parametrize("context", ["fork", "forkserver", "spawn"])
 def test_async_vector_env_renders_pixels_in_its_workers(context):
     code, report, err = run_probe(
@@ -89,6 +92,7 @@ def test_async_vector_env_renders_pixels_in_its_workers(context):
     assert report["parent_rendered_after_vector"] is False
 
 
+@pytest.mark.subprocess
 def test_fork_workers_render_after_the_parent_rendered():
     code, report, err = run_probe(
         "--mode", "async", "--context", "fork", "--render-first", timeout=FORK_TIMEOUT_S
@@ -99,6 +103,7 @@ def test_fork_workers_render_after_the_parent_rendered():
     check_vector_report(report)
 
 
+@pytest.mark.subprocess
 def test_fork_after_osmesa_rendering_raises_a_clear_error_instead_of_hanging():
     """Mesa's OSMesa cannot be given a fresh display in a forked child: we say so."""
     code, report, err = run_probe(

@@ -15,6 +15,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+from paths import ROOT
 
 import gym_soarm  # noqa: F401 - registers the environments
 from gym_soarm import constants
@@ -39,7 +40,6 @@ from gym_soarm.record.record import record
 from gym_soarm.rl.hyperparams import recipe
 from gym_soarm.tasks.suites import SelectedTask
 
-ROOT = Path(__file__).resolve().parents[1]
 NAMES = EnvSettings.names()
 STATE = {"obs_type": "environment_state_agent_pos"}
 

@@ -87,6 +87,7 @@ def test_cli_writes_table_json_and_plot(lift, tmp_path, capsys):
     assert (np.abs(image.astype(int) - (40, 40, 40)).sum(axis=2) < 30).sum() > 500
 
 
+@pytest.mark.subprocess
 def test_replay_module_runs_as_a_script(lift):
     result = subprocess.run(
         [

@@ -7,7 +7,6 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -15,6 +14,7 @@ import pytest
 from conftest import SMALL
 from gymnasium.vector import AutoresetMode
 from interrupt import interrupt_when
+from paths import ROOT
 from same import assert_same, compare_with_sync
 
 import gym_soarm
@@ -226,8 +226,9 @@ def test_bad_arguments_name_what_was_expected():
         envs.close()
 
 
+@pytest.mark.subprocess
 def test_the_vector_env_example_runs_as_a_user_runs_it():
-    script = Path(__file__).resolve().parents[1] / "examples" / "vector_env.py"
+    script = ROOT / "examples" / "vector_env.py"
     done = subprocess.run(
         [sys.executable, str(script), "--num-envs", "3", "--steps", "40"],
         capture_output=True,
@@ -281,6 +282,7 @@ if __name__ == "__main__":
 """
 
 
+@pytest.mark.subprocess
 def test_ctrl_c_in_the_middle_of_a_step_closes_the_vector_env(tmp_path):
     script = tmp_path / "ctrl_c.py"
     script.write_text(CTRL_C_SCRIPT)

@@ -9,13 +9,13 @@ import importlib.util
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import cv2
 import mujoco
 import numpy as np
 import pytest
 from conftest import colour_counts
+from paths import ROOT
 
 from gym_soarm.bench import bench
 from gym_soarm.cli import bench as bench_cli
@@ -31,6 +31,7 @@ def _check_spread(spread: dict, repeats: int) -> None:
     assert 0 < spread["min"] <= spread["median"] <= spread["max"]
 
 
+@pytest.mark.subprocess
 def test_short_benchmark_run_reports_every_field(tmp_path):
     out = tmp_path / "bench.json"
     proc = subprocess.run(
@@ -126,6 +127,7 @@ def _bench(args: list[str], timeout: float = 300) -> subprocess.CompletedProcess
     return proc
 
 
+@pytest.mark.subprocess
 def test_vector_scaling_compares_the_three_vector_envs_and_is_plotted(tmp_path):
     out = tmp_path / "scaling.json"
     proc = _bench(
@@ -173,7 +175,7 @@ def test_vector_scaling_compares_the_three_vector_envs_and_is_plotted(tmp_path):
         assert target["value"] > 0 and isinstance(target["met"], bool)
 
     picture = tmp_path / "scaling.png"
-    script = Path(__file__).resolve().parents[1] / "scripts" / "make_vector_scaling_plot.py"
+    script = ROOT / "scripts" / "make_vector_scaling_plot.py"
     subprocess.run(
         [sys.executable, str(script), str(out), "--out", str(picture)], check=True, timeout=60
     )
@@ -182,6 +184,7 @@ def test_vector_scaling_compares_the_three_vector_envs_and_is_plotted(tmp_path):
     assert (image < 128).any() and (image == 255).any()
 
 
+@pytest.mark.subprocess
 def test_recording_throughput_counts_the_episodes_of_each_recorder(tmp_path):
     out = tmp_path / "recording.json"
     ray = importlib.util.find_spec("ray") is not None  # the ray extra

@@ -125,6 +125,7 @@ print(",".join(bad))
 """
 
 
+@pytest.mark.subprocess
 def test_the_core_never_imports_torch_or_lerobot():
     result = subprocess.run([sys.executable, "-c", CORE_IMPORTS], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr

@@ -386,6 +386,7 @@ INTERRUPTED = textwrap.dedent(
 )
 
 
+@pytest.mark.subprocess
 def test_an_interrupted_recording_keeps_its_finished_episodes(tmp_path):
     root = tmp_path / "ds"
     script = INTERRUPTED.format(tests=str(Path(__file__).parent), root=str(root))

@@ -28,6 +28,8 @@ from xwindows import (
 import gym_soarm
 from gym_soarm.render.display import opencv_gui_backend
 
+pytestmark = [pytest.mark.window, pytest.mark.gl]
+
 HEIGHT, WIDTH = 120, 160  # small, and above Qt's minimum window size
 
 
@@ -204,6 +206,7 @@ def _make_human_env_in_subprocess(display: str | None) -> dict:
     return json.loads(result.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.subprocess
 def test_no_display_raises_display_unavailable_error():
     outcome = _make_human_env_in_subprocess(display=None)
     message = outcome["message"]
@@ -218,6 +221,7 @@ def test_no_display_raises_display_unavailable_error():
         assert "opencv-python==" in message
 
 
+@pytest.mark.subprocess
 def test_unreachable_display_raises_instead_of_aborting():
     outcome = _make_human_env_in_subprocess(display=":7913")
     message = outcome["message"]
@@ -226,6 +230,7 @@ def test_unreachable_display_raises_instead_of_aborting():
     assert "xvfb-run" in message
 
 
+@pytest.mark.subprocess
 def test_with_a_display_only_the_headless_build_is_refused():
     display = os.environ.get("DISPLAY")
     if not display:

@@ -7,6 +7,8 @@ import pytest
 
 from gym_soarm.validation import ArgumentTypeError
 
+pytestmark = pytest.mark.gl
+
 OVERVIEW = {
     "camera_config": ["overview_camera"],
     "observation_height": 96,

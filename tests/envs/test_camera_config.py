@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 from conftest import SMALL, colour_counts
 
+pytestmark = pytest.mark.gl
+
 CONFIGS = {
     "front_only": ["front_camera"],
     "front_wrist": ["front_camera", "wrist_camera"],

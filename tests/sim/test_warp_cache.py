@@ -29,6 +29,7 @@ def _program(*args: str) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.subprocess
 @pytest.mark.slow
 def test_cache_holds_cuda_binaries_for_the_named_architecture(tmp_path):
     out = tmp_path / "kcache"
@@ -53,6 +54,7 @@ def test_bad_architectures_are_refused(arch):
         check_archs(arch)
 
 
+@pytest.mark.subprocess
 def test_program_refuses_bad_input_before_building(tmp_path):
     run = _program("--out", str(tmp_path / "k"), "--arch", "7")
     assert run.returncode == 2 and "CUDA architectures as ints" in run.stderr

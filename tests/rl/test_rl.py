@@ -25,6 +25,8 @@ from gym_soarm.rl.evaluation import TrainedPolicy, read_settings, score
 from gym_soarm.rl.hyperparams import ALGORITHMS, HYPERPARAMS, recipe
 from gym_soarm.rl.training import train
 
+pytestmark = pytest.mark.train
+
 SMOKE = {
     "ppo": {"steps": 2048, "hyperparams": {"n_steps": 128, "batch_size": 256}},
     "sac": {"steps": 1200, "hyperparams": {"learning_starts": 200}},
@@ -37,6 +39,7 @@ def _cli(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.subprocess
 @pytest.mark.parametrize("algo", ALGORITHMS)
 def test_train_save_reload_and_evaluate(tmp_path, algo):
     out = tmp_path / algo
@@ -98,6 +101,7 @@ def test_the_native_vector_env_trains_exactly_as_sb3s_own(tmp_path, algo):
         assert torch.equal(value, weights["dummy"][key]), key
 
 
+@pytest.mark.subprocess
 def test_evaluate_the_expert_on_the_protocol(tmp_path):
     report = tmp_path / "expert.json"
     done = _cli(
@@ -119,6 +123,7 @@ def test_the_recipes_are_complete():
             assert set(row) <= set(HYPERPARAMS[algo]["default"]), (algo, task)
 
 
+@pytest.mark.subprocess
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -160,6 +165,7 @@ def trained_reach(tmp_path_factory) -> Path:
     return out
 
 
+@pytest.mark.subprocess
 def test_evaluate_refuses_what_is_not_our_policy(tmp_path, trained_reach):
     empty = tmp_path / "empty"
     empty.mkdir()
@@ -193,6 +199,7 @@ def test_evaluate_refuses_what_is_not_our_policy(tmp_path, trained_reach):
     assert done.returncode != 0 and "--policy expert needs --task" in done.stderr
 
 
+@pytest.mark.subprocess
 def test_ctrl_c_keeps_the_last_checkpoint_and_curve(tmp_path):
     out = tmp_path / "run"
     done = interrupt_when(

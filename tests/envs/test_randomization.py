@@ -12,6 +12,8 @@ import pytest
 from gym_soarm import constants
 from gym_soarm.sim.randomization import STS3215
 
+pytestmark = pytest.mark.gl
+
 STATE = {"obs_type": "environment_state_agent_pos"}
 FIELDS = ("light_dir", "light_diffuse", "mat_rgba", "cam_pos", "cam_quat", "cam_fovy")
 PHYSICS_FIELDS = ("body_mass", "geom_friction", "actuator_gainprm", "actuator_biasprm")

@@ -86,6 +86,7 @@ def _worker_dirs(root: Path) -> list[Path]:
     return sorted((root / SCRATCH_DIR / "shards").glob("worker-*"))
 
 
+@pytest.mark.subprocess
 def test_a_worker_killed_mid_episode_costs_a_retry(one_worker, tmp_path):
     reference, _ = one_worker
     root = tmp_path / "ds"
@@ -119,6 +120,7 @@ def test_a_worker_killed_mid_episode_costs_a_retry(one_worker, tmp_path):
     assert_same_dataset(reference, root)
 
 
+@pytest.mark.subprocess
 def test_ctrl_c_keeps_every_finished_episode(tmp_path):
     root = tmp_path / "ds"
     command = [
@@ -159,6 +161,7 @@ def _listening(port: int) -> bool:
         return sock.connect_ex(("127.0.0.1", port)) == 0
 
 
+@pytest.mark.subprocess
 def test_ray_tasks_on_a_local_head_give_the_same_dataset(one_worker, tmp_path):
     pytest.importorskip("ray")
     reference, _ = one_worker
@@ -228,6 +231,7 @@ def test_a_multi_task_recording_is_the_same_with_workers_and_ray(tmp_path):
     assert_same_dataset(tmp_path / "one", tmp_path / "ray")
 
 
+@pytest.mark.subprocess
 def test_workers_that_cannot_start_end_the_recording_with_the_fix(tmp_path):
     # A script fed on stdin: the workers cannot import its main module again and die
     # while starting; the recorder gives up after a few, naming the fix.

@@ -299,6 +299,7 @@ def test_cli(tmp_path, capsys):
     assert "even" in capsys.readouterr().err
 
 
+@pytest.mark.subprocess
 def test_ctrl_c_keeps_the_finished_episodes(tmp_path):
     root = tmp_path / "interrupted"
     command = [

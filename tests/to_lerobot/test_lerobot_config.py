@@ -19,14 +19,14 @@ import sys
 import types
 import warnings
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import pytest
+from paths import ROOT
 
 from gym_soarm.vector import BatchedVectorEnv, SoArmVectorEnv
 
-CONFIG_PATH = Path(__file__).resolve().parents[1] / "gym_soarm" / "lerobot" / "config.py"
+CONFIG_PATH = ROOT / "gym_soarm" / "lerobot" / "config.py"
 STATE = {"obs_type": "environment_state_agent_pos", "task": "LiftCube-v0"}
 PIXELS = {
     "obs_type": "pixels_agent_pos",

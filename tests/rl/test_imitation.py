@@ -30,6 +30,8 @@ from gym_soarm.rl.hyperparams import HYPERPARAMS, IMITATION, recipe
 from gym_soarm.rl.imitation import Dataset, train_imitation, training_seeds
 from gym_soarm.rl.training import train
 
+pytestmark = pytest.mark.train
+
 TINY = {"demos": 4, "epochs": 5, "batch_size": 64}
 TINY_DAGGER = {**TINY, "rounds": 1, "episodes_per_round": 3, "round_epochs": 3}
 
@@ -210,6 +212,7 @@ def test_bad_numbers_are_refused_before_training(tmp_path, algo, hyperparams, me
     assert not (tmp_path / "run").exists()
 
 
+@pytest.mark.subprocess
 def test_bad_input_is_refused_in_python_and_on_the_command_line(tmp_path):
     with pytest.raises(ValueError, match="NoSuch"):
         train_imitation("bc", "NoSuch-v0", tmp_path / "a")
@@ -237,6 +240,7 @@ def test_the_imitation_recipes_are_complete():
     assert set(recipe("bc", "LiftCube-v0")["algo"]) < set(recipe("dagger", "LiftCube-v0")["algo"])
 
 
+@pytest.mark.subprocess
 def test_ctrl_c_keeps_the_last_checkpoint_and_curve(tmp_path):
     out = tmp_path / "run"
     done = interrupt_when(

@@ -21,11 +21,11 @@ import warnings
 from pathlib import Path
 
 import pytest
+from paths import ROOT
 
 from gym_soarm.bench import ceiling
 from gym_soarm.cli import programs
 
-ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "gym_soarm"
 
 
@@ -36,6 +36,7 @@ def _python(*argv: str, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
 
 
 # --- python -m gym_soarm <program> ------------------------------------------------------
+@pytest.mark.subprocess
 @pytest.mark.parametrize(
     "argv, usage",
     [
@@ -51,6 +52,7 @@ def test_both_spellings_run_the_program(argv, usage, tmp_path):
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.subprocess
 def test_an_unknown_program_is_refused_with_the_list(tmp_path):
     done = _python("-m", "gym_soarm", "trian", cwd=tmp_path)
     assert done.returncode == 2
@@ -152,6 +154,7 @@ def test_a_pickle_that_names_an_old_module_loads(forget_old_names):
         assert pickle.loads(old) == settings
 
 
+@pytest.mark.subprocess
 def test_an_old_program_name_still_runs(tmp_path):
     done = _python("-m", "gym_soarm.tools.docs", cwd=tmp_path)
     assert done.returncode == 0, done.stderr[-3000:]
@@ -206,6 +209,7 @@ def test_the_ceiling_imports_nothing_of_gym_soarm():
     assert ceiling.PATH == PACKAGE / "bench" / "ceiling.py"
 
 
+@pytest.mark.subprocess
 def test_the_ceiling_runs_by_its_path(tmp_path):
     import mujoco
 

@@ -204,6 +204,7 @@ def _load_in_subprocess(cache_dir: Path, visual: str) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.subprocess
 def test_compiled_model_is_cached_reused_and_rebuilt_when_damaged(tmp_path):
     stale = tmp_path / "models" / "scene-fast-0123456789abcdef01234567.mjb"  # same label
     stale.parent.mkdir(parents=True)

@@ -39,6 +39,8 @@ from gym_soarm.teleop import (
 from gym_soarm.teleop.input import DISCARD, GRIPPER, QUIT, SAVE
 from gym_soarm.teleop.session import WINDOW_TITLE
 
+pytestmark = [pytest.mark.window, pytest.mark.gl]
+
 HEIGHT, WIDTH = 96, 128
 INSTRUCTION = "Pick up the blue cube and lift it 5 cm above the table."
 KEY_GAP_S = 0.15  # longer than a press's hold: every press moves at least one more step
@@ -241,6 +243,7 @@ def test_an_existing_dataset_needs_overwrite(tmp_path, capsys):
     assert (root / "notes.txt").read_text() == "mine"
 
 
+@pytest.mark.subprocess
 def test_gamepad_without_pygame_names_the_install(tmp_path):
     # A pygame that fails to import stands for one that is not installed.
     (tmp_path / "pygame.py").write_text("raise ImportError(\"No module named 'pygame'\")\n")
@@ -258,6 +261,7 @@ def test_gamepad_without_pygame_names_the_install(tmp_path):
     assert "gym-soarm[teleop]" in result.stderr
 
 
+@pytest.mark.subprocess
 def test_without_a_display_it_explains_and_exits():
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     result = subprocess.run(

@@ -6,7 +6,7 @@ same spaces, metadata, time limit, autoreset in its three modes (``final_obs`` a
 ``final_info`` in ``SAME_STEP``), reset masks, and the same refusals before anything
 steps. The batched and process envs give its episodes bit for bit; the Warp worlds
 (float32 physics on Warp's CPU device here) give the same structure, ends and resets,
-their values within a few millimetres (``tests/test_warp.py`` measures how close).
+their values within a few millimetres (``tests/sim/test_warp.py`` measures how close).
 """
 
 from __future__ import annotations

@@ -40,6 +40,8 @@ from gym_soarm.rl.pixels import (
 from gym_soarm.tasks.scripted import ScriptedExpert
 from gym_soarm.tasks.state_expert import StateExpert
 
+pytestmark = [pytest.mark.gl, pytest.mark.train]
+
 PIXELS = ["--obs-type", "pixels_agent_pos", "--camera-config", "front_wrist"]
 SIZE = ["--observation-height", "48", "--observation-width", "64"]
 TINY = ["demos=2", "epochs=1", "batch_size=32", "channels=[4,4,4,4]", "hidden=[16]"]
@@ -227,6 +229,7 @@ def test_a_pixel_model_without_the_auxiliary_head_still_loads_and_acts(tmp_path)
     assert policy.net.aux is None
 
 
+@pytest.mark.subprocess
 def test_pixel_dagger_stops_once_its_evaluation_stops_rising(tmp_path):
     out = tmp_path / "patience"
     done = _cli(
@@ -249,6 +252,7 @@ def test_pixel_dagger_stops_once_its_evaluation_stops_rising(tmp_path):
     assert len(rates) == min(expected, 5) < 5
 
 
+@pytest.mark.subprocess
 def test_pixel_policy_acts_on_rendered_observations_and_is_scored(dagger_lift):
     policy = TrainedPolicy(dagger_lift)
     env = make_env(policy.task, policy.settings["env"])
@@ -350,6 +354,7 @@ def test_a_task_without_a_state_expert_is_refused(tmp_path):
         check_pixel_student(scripted_only, {"obs_type": "pixels_agent_pos"})
 
 
+@pytest.mark.subprocess
 def test_cli_refuses_cameras_for_rl_and_a_gpu_for_state_policies(tmp_path):
     done = _cli(
         "gym_soarm.train", "--algo", "ppo", "--task", "lift", *PIXELS, "--out", str(tmp_path / "a")

@@ -3,17 +3,16 @@
 from __future__ import annotations
 
 import importlib.util
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import pytest
+from paths import ROOT
 
 import gym_soarm
 from gym_soarm.envs.presets import TABLETOP_ID
 from gym_soarm.tasks.put_cubes_in_box import BOX, COLOURS, INSTRUCTION, cube_name, slot_of
 
-ROOT = Path(__file__).resolve().parents[1]
 TASK = "gym_soarm/PutCubesInBox-v0"
 
 
