@@ -11,6 +11,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from dataset_files import decode_video, frame_times, psnr, read_dataset
+from paths import TESTS
 
 from gym_soarm.data import (
     AUTO_FEATURES,
@@ -370,7 +371,7 @@ INTERRUPTED = textwrap.dedent(
     import os, sys
     import numpy as np
     from gym_soarm.data import LeRobotDatasetWriter
-    sys.path.insert(0, {tests!r})
+    sys.path[:0] = [{here!r}, {tests!r}]  # this module and the tests' helpers
     from test_dataset import _good_frame, _state_features
     writer = LeRobotDatasetWriter.create({root!r}, 50, _state_features())
     for length in (5, 7):
@@ -389,7 +390,7 @@ INTERRUPTED = textwrap.dedent(
 @pytest.mark.subprocess
 def test_an_interrupted_recording_keeps_its_finished_episodes(tmp_path):
     root = tmp_path / "ds"
-    script = INTERRUPTED.format(tests=str(Path(__file__).parent), root=str(root))
+    script = INTERRUPTED.format(here=str(Path(__file__).parent), tests=str(TESTS), root=str(root))
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
     assert result.returncode == 3, result.stderr
     ds = read_dataset(root)
