@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -180,3 +180,23 @@ def parse_size(text: str) -> tuple[int, int]:
                 f"(H.264 needs even sizes); got {value} in {text!r}."
             )
     return height, width
+
+
+def check_fields(
+    entry: Any, fields: Sequence[str], what: str, refuse: Callable[[str], ValueError]
+) -> Mapping[str, Any]:
+    """``entry`` of a file: a mapping whose keys are all in ``fields`` (some may be
+    missing), else ``refuse(problem)`` is raised, the problem naming ``what``.
+
+    Args:
+        entry: the value read from the file.
+        fields: the keys it may have.
+        what: how the problem names it ("motor 'gripper'", "joints.gripper").
+        refuse: makes the error from the problem (the file's name and the fix).
+    """
+    if not isinstance(entry, Mapping):
+        raise refuse(f"{what} is a {type(entry).__name__}, not an object")
+    extra = sorted(set(entry) - set(fields))
+    if extra:
+        raise refuse(f"{what} has an unknown field {extra[0]!r}; expected {', '.join(fields)}")
+    return entry

@@ -98,7 +98,7 @@ from gym_soarm.real.unit_maps import (
     check_wrist_roll_offset,
     wrap_rad,
 )
-from gym_soarm.validation import ArgumentTypeError
+from gym_soarm.validation import ArgumentTypeError, check_fields
 
 MAX_TICKS = 4095
 """The highest reading of the STS3215's 12-bit encoder (readings are 0 to 4095)."""
@@ -170,14 +170,7 @@ def _refuse(path: object, problem: str) -> ValueError:
 
 def _motor(path: str | os.PathLike[str], name: str, entry: Any) -> MotorCalibration:
     """One motor's entry of a calibration file (checked)."""
-    if not isinstance(entry, dict):
-        raise _refuse(path, f"motor {name!r} is a {type(entry).__name__}, not an object")
-    extra = sorted(set(entry) - set(FIELDS))
-    if extra:
-        raise _refuse(
-            path,
-            f"motor {name!r} has an unknown field {extra[0]!r}; expected {', '.join(FIELDS)}",
-        )
+    entry = check_fields(entry, FIELDS, f"motor {name!r}", lambda problem: _refuse(path, problem))
     values: dict[str, int] = {}
     for field in FIELDS:
         if field not in entry:

@@ -61,7 +61,7 @@ import numpy as np
 
 from gym_soarm import constants
 from gym_soarm.sim.randomization import arm_indices, set_servo_gains
-from gym_soarm.validation import ArgumentTypeError
+from gym_soarm.validation import ArgumentTypeError, check_fields
 
 FORMAT = "gym_soarm.dynamics/1"
 """The ``format`` string of a dynamics file, as :func:`write_dynamics` writes it."""
@@ -128,14 +128,9 @@ def _refuse(source: object, problem: str) -> ValueError:
 
 def _joint_values(source: object, name: str, entry: Any) -> dict[str, float]:
     """One joint's fields of a dynamics file (checked, as floats)."""
-    if not isinstance(entry, Mapping):
-        raise _refuse(source, f"joints.{name} is a {type(entry).__name__}, not an object of fields")
-    extra = sorted(set(entry) - set(JOINT_FIELDS))
-    if extra:
-        raise _refuse(
-            source,
-            f"joints.{name} has an unknown field {extra[0]!r}; expected {', '.join(JOINT_FIELDS)}",
-        )
+    entry = check_fields(
+        entry, JOINT_FIELDS, f"joints.{name}", lambda problem: _refuse(source, problem)
+    )
     values: dict[str, float] = {}
     for key in JOINT_FIELDS:
         if key not in entry:
