@@ -228,12 +228,13 @@ def test_bad_env_config_values():
 
 
 def test_env_config_takes_a_task_defined_outside_the_library():
-    """The task of tests/test_registry.py, registered here: LeRobot reads its layout."""
+    """The task of tests/tasks/test_registry.py, registered here: LeRobot reads its layout."""
     import sys
 
     import gym_soarm
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    tests = Path(__file__).resolve().parents[1] / "tests"
+    sys.path[:0] = [str(tests / "tasks"), str(tests)]
     import test_registry
 
     gym_soarm.register_task(test_registry.SPEC)

@@ -43,7 +43,7 @@ env's ``units``.
   plane; positive swings the jaw tips away from the shoulder (pi/2: horizontal,
   pointing outward), negative towards it.
 * ``roll``: turn of the jaws about their own axis; 0 with the closing axis horizontal
-  and across the arm's plane, positive counter-clockwise seen from above (jaws down).
+  and in the arm's plane (along its bearing), positive counter-clockwise seen from above (jaws down).
   It is the wrist roll joint's angle minus 0.0487 rad, so it reaches +-160 degrees.
 
 With the jaws pointing down (pitch 0) the closing axis lies horizontal at yaw =

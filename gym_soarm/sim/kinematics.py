@@ -16,7 +16,7 @@ therefore leave the jaws five degrees of freedom, written :class:`JawPose`: the
   horizontally outward), negative towards it. It is ``pi/2`` minus the sum of the
   shoulder lift, elbow and wrist flex angles, wrapped to a turn.
 * ``roll`` (rad): the turn of the jaws about their own axis, 0 when the closing axis is
-  horizontal and across the arm's plane; positive turns it counter-clockwise seen from
+  horizontal and in the arm's plane (along its bearing); positive turns it counter-clockwise seen from
   above when the jaws point down. It is the wrist roll joint's angle minus 0.0487 rad
   (the gripper is mounted 2.8 degrees round), so its range is +-2.7925 rad (+-160 deg).
 
@@ -76,7 +76,7 @@ class JawPose(NamedTuple):
         pitch: tilt of the jaws' axis from straight down within the arm's plane (rad);
             positive swings the tips away from the shoulder.
         roll: turn of the jaws about their own axis (rad), 0 with the closing axis
-            across the arm's plane.
+            horizontal in the arm's plane (along its bearing).
     """
 
     position: np.ndarray

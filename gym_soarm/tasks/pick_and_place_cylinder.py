@@ -8,9 +8,9 @@ of the strip |x| < 0.05 m beneath the arm's resting pose (where the overview cam
 not see it) and at least 16 cm from the robot base's centre (nearer, the wrist cannot
 hold the jaws vertical above the tall cylinder's top); its yaw is irrelevant.
 
-Success: the cylinder stands upright (its axis within 10 degrees of vertical) on the
-pad (its centre within the pad's radius, its bottom within 5 mm of the table), neither
-jaw touches it and it is at rest.
+Success: the cylinder stands upright (its axis within 10 degrees of vertical, on either
+end) on the pad (its centre within the pad's radius, its bottom within 5 mm of the
+table), neither jaw touches it and it is at rest.
 
 Reward terms are stages — ``reach`` (jaws near the cylinder), ``grasp`` (both pads on
 it), ``lift`` (its bottom raised towards 5 cm while held), ``place`` (carried over the
@@ -36,7 +36,7 @@ import numpy as np
 from gym_soarm import constants
 from gym_soarm.sim.arrays import Array, SimArrays
 from gym_soarm.sim.arrays import norm as batch_norm
-from gym_soarm.sim.kinematics import downward_rotation
+from gym_soarm.sim.kinematics import JawPose, downward_rotation
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
@@ -58,7 +58,12 @@ from gym_soarm.tasks.rewards import (
     tolerance,
 )
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, PlaceExpert
-from gym_soarm.tasks.state_expert import DEFAULT_STATE_CONFIG, PlaceStateExpert, StateExpertConfig
+from gym_soarm.tasks.state_expert import (
+    DEFAULT_STATE_CONFIG,
+    Move,
+    PlaceStateExpert,
+    StateExpertConfig,
+)
 
 CYLINDER_RADIUS_M = 0.0145
 CYLINDER_HALF_HEIGHT_M = 0.0275
@@ -111,10 +116,11 @@ _COS_MAX_TILT = math.cos(math.radians(MAX_TILT_DEG))
 
 
 def tilt_cosine(quaternion: Array) -> Array:
-    """Cosine of the angle between a body's z axis and the world's, from its (w, x, y, z)
-    quaternion (the last axis: ``(4,)`` or ``(n, 4)``)."""
+    """Cosine of the angle between a body's z axis and the vertical, either way up (the
+    cylinder is the same on either end), from its (w, x, y, z) quaternion (the last
+    axis: ``(4,)`` or ``(n, 4)``)."""
     x, y = quaternion[..., 1], quaternion[..., 2]
-    return 1.0 - 2.0 * (x * x + y * y)
+    return abs(1.0 - 2.0 * (x * x + y * y))
 
 
 def draw_start(rng: np.random.Generator) -> tuple[float, float]:
@@ -281,9 +287,36 @@ CYLINDER_STATE_CONFIG = dataclasses.replace(
 """The state expert's heights for the tall cylinder (as the scripted one's)."""
 
 
+LYING_DEG = 45.0
+"""A cylinder tilted further than this lies on its side: the expert stands it up first."""
+STAND_RADIUS_M = 0.26
+"""Distance from the shoulder pan axis where a lying cylinder is stood up, on the pad's
+bearing: the jaws can point horizontally there (nearer the base, as at the pad itself,
+the wrist flex runs out of range)."""
+STAND_HEIGHT_M = 0.065
+"""Height of the jaws' centre while a held lying cylinder turns upright."""
+STANDING_PITCH_RAD = math.pi / 2
+"""The jaws' pitch (horizontal, tips outward) that holds the turned cylinder upright."""
+PITCHED_RAD = 0.3
+"""Jaws pitched further than this, by the cylinder: the stand-up is under way."""
+UPRIGHT_DEG = 8.0
+"""A held cylinder within this tilt of vertical is set down on the table."""
+_N_ARM_JOINTS = len(constants.ARM_JOINT_NAMES)
+
+
 class PickAndPlaceCylinderStateExpert(PlaceStateExpert):
     """From the state: grasp the cylinder round its middle from the side needing least
-    wrist roll, carry it over the pad, stand it there, let go and rise."""
+    wrist roll, carry it over the pad, stand it there, let go and rise.
+
+    A cylinder lying on its side (after a push, a shove or a slip) is stood up first,
+    where the arm can: grasped from above across its middle, carried out to
+    :data:`STAND_RADIUS_M` on the pad's bearing with its axis turned into the arm's
+    plane (the jaws' closing line at right angles to it), turned upright by pitching
+    the jaws up to horizontal about that line, set down on the table and let go; the
+    jaws back away and turn down again, and the standing cylinder is picked and placed
+    as usual. Every stage is read off the state: the cylinder's tilt, whether it is
+    held, and the commanded jaws' pitch.
+    """
 
     def __init__(self, env: gym.Env, config: StateExpertConfig = CYLINDER_STATE_CONFIG) -> None:
         super().__init__(env, config)
@@ -291,15 +324,103 @@ class PickAndPlaceCylinderStateExpert(PlaceStateExpert):
     def grasp_object(self) -> str:
         return CYLINDER.name
 
+    def tilt_deg(self) -> float:
+        """The cylinder's tilt from vertical (degrees)."""
+        cosine = float(tilt_cosine(self.physics.object_quaternion(CYLINDER.name)))
+        return math.degrees(math.acos(min(max(cosine, -1.0), 1.0)))
+
+    def _axis_yaw(self) -> float:
+        """The direction of the cylinder's axis on the table (rad)."""
+        w, x, y, z = (float(v) for v in self.physics.object_quaternion(CYLINDER.name))
+        # The body's z axis (the cylinder's) in the world: its horizontal part.
+        return math.atan2(2.0 * (y * z - w * x), 2.0 * (x * z + w * y))
+
     def grasp_yaws(self, name: str) -> list[float]:
+        if self.tilt_deg() > LYING_DEG:  # closing across the lying body
+            across = self._axis_yaw() + math.pi / 2
+            return [across, across + math.pi]
         return [math.tau * k / _GRASP_YAW_CANDIDATES for k in range(_GRASP_YAW_CANDIDATES)]
 
     def grasp_height(self, name: str) -> float:
+        if self.tilt_deg() > LYING_DEG:  # level with the lying body's axis
+            return constants.TABLE_TOP_Z_M + CYLINDER_RADIUS_M + 0.002
         return self.config.grasp_height_m
 
     def place_target(self, name: str) -> np.ndarray:
         pad = self.physics.fixture_position(PAD.name)
         return np.array([pad[0], pad[1], constants.TABLE_TOP_Z_M + CYLINDER_HALF_HEIGHT_M])
+
+    def decide(self, commanded: np.ndarray) -> Move:
+        pose = self._kinematics.jaw_pose(commanded[:_N_ARM_JOINTS])
+        # Pitched jaws at the cylinder: the stand-up (the arm's rest pose has the jaws
+        # horizontal too, far from anything).
+        near = np.linalg.norm(self.physics.object_position(CYLINDER.name) - pose.position)
+        if pose.pitch > PITCHED_RAD and near < 0.06:
+            return self._stand_up(commanded, pose)
+        return super().decide(commanded)
+
+    def transport(self, name: str, commanded: np.ndarray, site: np.ndarray, yaw: float) -> Move:
+        if self.tilt_deg() > LYING_DEG:
+            return self._carry_to_stand(site, yaw)
+        return super().transport(name, commanded, site, yaw)
+
+    def _carry_to_stand(self, site: np.ndarray, yaw: float) -> Move:
+        """Held lying: out to the stand point with the cylinder's axis along the arm's
+        plane, then start pitching the jaws up."""
+        c = self.config
+        kinematics = self._kinematics
+        # Out on the pad's bearing: the cylinder is stood a short carry from the pad.
+        pad = self.physics.fixture_position(PAD.name)
+        stand = kinematics.cylindrical_point(
+            STAND_RADIUS_M, kinematics.bearing(pad), STAND_HEIGHT_M
+        )
+        # The closing line at right angles to the arm's plane (a roll of a quarter turn,
+        # the nearer one): the pitch then turns about it, the cylinder's axis with it.
+        across = kinematics.bearing(stand) + math.pi / 2
+        if abs(math.remainder(yaw - across, math.tau)) > math.pi / 2:
+            across += math.pi
+        turned = abs(math.remainder(yaw - across, math.tau)) < 0.05
+        if float(np.linalg.norm(site - stand)) < 0.01 and turned:
+            return Move(
+                "pose", stand, yaw, c.gripper_closed_rad, pitch=STANDING_PITCH_RAD, stage="stand"
+            )
+        return Move(
+            "line", stand, across, c.gripper_closed_rad, speed_m=c.carry_speed_m, stage="carry"
+        )
+
+    def _stand_up(self, commanded: np.ndarray, pose: JawPose) -> Move:
+        """The jaws pitched at the cylinder: turn it upright, set it down and let go; or,
+        with nothing held, back away and turn the jaws down again."""
+        c = self.config
+        physics = self.physics
+        gripper_command = float(commanded[_N_ARM_JOINTS])
+        held = physics.grasped(CYLINDER.name) and gripper_command <= c.gripper_closed_rad + 0.05
+        if held and self.tilt_deg() > UPRIGHT_DEG:
+            return Move(
+                "pose", pose.position, 0.0, c.gripper_closed_rad,
+                pitch=STANDING_PITCH_RAD, stage="stand",
+            )  # fmt: skip
+        if held:
+            bottom = physics.object_position(CYLINDER.name)[2] - CYLINDER_HALF_HEIGHT_M
+            clearance = bottom - constants.TABLE_TOP_Z_M
+            if clearance > 0.006:
+                down = pose.position - np.array([0.0, 0.0, clearance - 0.003])
+                return Move(
+                    "pose", down, 0.0, c.gripper_closed_rad, speed_m=0.006,
+                    pitch=STANDING_PITCH_RAD, stage="set down",
+                )  # fmt: skip
+            return Move("hold", None, 0.0, c.gripper_open_rad, stage="let go")
+        if gripper_command < c.gripper_open_rad - 0.05:
+            return Move("hold", None, 0.0, c.gripper_open_rad, stage="let go")
+        kinematics = self._kinematics
+        back = kinematics.cylindrical_point(
+            kinematics.radius(pose.position) - 0.04,
+            kinematics.bearing(pose.position),
+            c.hover_height_m,
+        )
+        return Move(
+            "pose", back, 0.0, c.gripper_open_rad, speed_m=0.006, pitch=0.0, stage="back away"
+        )
 
 
 SPEC = TaskSpec(

@@ -33,7 +33,7 @@ import numpy as np
 
 from gym_soarm import constants
 from gym_soarm.envs.control import ControlMode
-from gym_soarm.sim.kinematics import ArmKinematics, downward_rotation
+from gym_soarm.sim.kinematics import ArmKinematics, JawPose, downward_rotation
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.sim.timing import DEFAULT_CONTROL_HZ
 
@@ -134,8 +134,10 @@ class Move:
     ``kind``: ``"joint"`` (a joint-space move to the inverse kinematics of the target,
     from an elbow-up posture: long moves), ``"line"`` (a straight line of the jaws),
     ``"hold"`` (the arm stays), ``"relax"`` (the arm's targets back towards its measured
-    joints: :meth:`StateExpert.relaxed`; ``position`` is not used) or ``"posture"`` (a
-    joint-space move to the arm joints given as ``position``).
+    joints: :meth:`StateExpert.relaxed`; ``position`` is not used), ``"posture"`` (a
+    joint-space move to the arm joints given as ``position``) or ``"pose"`` (a straight
+    line of the jaws while their pitch turns towards ``pitch``, away from straight down,
+    their roll kept; ``yaw`` is not used).
     """
 
     kind: str
@@ -144,6 +146,9 @@ class Move:
     gripper: float
     speed_m: float = 0.0
     stage: str = ""
+    pitch: float = 0.0
+    """The jaws' pitch a ``"pose"`` move turns towards (rad, see
+    :class:`~gym_soarm.sim.kinematics.JawPose`)."""
 
 
 class StateExpert:
@@ -248,6 +253,8 @@ class StateExpert:
             return arm
         if move.kind == "joint":
             goal, _ = self.solve(move.position, move.yaw)
+        elif move.kind == "pose":  # mostly the wrist flex turning: twice as fast
+            return self._limited(self._pose_step(move, arm), arm, scale=2.0)
         else:
             goal = self._line_step(move, arm)
         return self._limited(goal, arm)
@@ -315,8 +322,23 @@ class StateExpert:
         q, _, _ = self._kinematics.solve(arm, waypoint, downward_rotation(next_yaw))
         return q
 
-    def _limited(self, goal: np.ndarray, arm: np.ndarray) -> np.ndarray:
-        """``arm`` moved towards ``goal`` within the speed and acceleration limits.
+    def _pose_step(self, move: Move, arm: np.ndarray) -> np.ndarray:
+        """The joints one step of a ``"pose"`` move: the jaws a straight-line step towards
+        ``move.position``, their pitch a step of twice the joint speed towards
+        ``move.pitch``, their roll as it is."""
+        pose = self._kinematics.jaw_pose(arm)
+        remaining = np.asarray(move.position) - pose.position
+        distance = float(np.linalg.norm(remaining))
+        length = min(move.speed_m or self.config.line_speed_m, distance)
+        waypoint = pose.position + (remaining * (length / distance) if distance else 0.0)
+        limit = 2.0 * self.config.joint_speed_rad  # mostly the wrist flex alone turns
+        pitch = pose.pitch + min(max(move.pitch - pose.pitch, -limit), limit)
+        q, _, _ = self._kinematics.solve_pose(arm, JawPose(waypoint, pitch, pose.roll))
+        return q
+
+    def _limited(self, goal: np.ndarray, arm: np.ndarray, scale: float = 1.0) -> np.ndarray:
+        """``arm`` moved towards ``goal`` within the speed and acceleration limits (times
+        ``scale``).
 
         A trapezoidal profile read off the state: each joint's step exceeds what its
         measured speed asks of the servo (twice the measured speed: the servos trail
@@ -324,15 +346,15 @@ class StateExpert:
         lets it brake to a stop at the goal. The joints move together: each covers the
         same fraction of its way, so the jaws travel on a smooth path.
         """
-        c = self.config
+        top, accel = scale * self.config.joint_speed_rad, scale * self.config.joint_accel_rad
         error = goal - arm
         size = np.abs(error)
         if float(size.max()) <= 1e-9:
             return goal
         speed = np.abs(self.physics.joint_velocities()[:_N_ARM]) * self.env.dt
-        limit = np.minimum(c.joint_speed_rad, 2.0 * speed + c.joint_accel_rad)
-        limit = np.minimum(limit, np.sqrt(2.0 * c.joint_accel_rad * size))
-        limit = np.maximum(limit, np.minimum(size, c.joint_accel_rad))
+        limit = np.minimum(top, 2.0 * speed + accel)
+        limit = np.minimum(limit, np.sqrt(2.0 * accel * size))
+        limit = np.maximum(limit, np.minimum(size, accel))
         moving = size > 1e-9
         fraction = min(1.0, float(np.min(limit[moving] / size[moving])))
         return arm + error * fraction

@@ -93,3 +93,52 @@ def test_expert_uses_the_cylinder_heights_unless_given_a_config(env):
     assert cyl.CYLINDER_EXPERT_CONFIG.grasp_height_m == pytest.approx(0.03)
     own = ExpertConfig(carry_steps=70)
     assert make_expert(env, own).config is own
+
+
+@pytest.mark.parametrize(
+    ("position", "axis_yaw_deg"),
+    [((0.09, 0.33), 30.0), ((-0.05, 0.40), 100.0)],  # lying across and along the arm
+)
+def test_the_state_expert_stands_a_lying_cylinder_up_then_places_it(position, axis_yaw_deg):
+    # Lying on its side, out of the pad: grasped across its middle, turned upright by
+    # pitching the jaws, set down standing, let go, picked up again and placed.
+    env = gym.make(ENV_ID, obs_type="environment_state_agent_pos", max_episode_steps=600)
+    try:
+        env.reset(seed=0)
+        base = env.unwrapped
+        yaw = math.radians(axis_yaw_deg)
+        # The body's z axis (the cylinder's) turned to horizontal at yaw: Rz(yaw) Ry(90).
+        half = math.pi / 4
+        lying = np.array(
+            [
+                math.cos(yaw / 2) * math.cos(half),
+                -math.sin(yaw / 2) * math.sin(half),
+                math.cos(yaw / 2) * math.sin(half),
+                math.sin(yaw / 2) * math.cos(half),
+            ]
+        )
+        _settle(env, [*position, cyl.CYLINDER_RADIUS_M], lying, steps=5)
+        expert = make_expert(env)
+        assert expert.tilt_deg() > 85.0
+        stages, stood_alone = [], False
+        for _ in range(600):
+            _, _, terminated, truncated, info = env.step(expert())
+            stages.append(expert.stage)
+            physics = base.physics
+            alone = not physics.grasped("cylinder") and expert.tilt_deg() < 5.0
+            stood_alone |= alone and "let go" in stages and not terminated
+            if terminated or truncated:
+                break
+        assert {"stand", "set down", "let go", "back away"} <= set(stages)
+        assert stood_alone, "the cylinder never stood on the table by itself"
+        assert info["is_success"], stages[-1]
+    finally:
+        env.close()
+
+
+def test_a_cylinder_standing_on_its_other_end_is_upright(env):
+    env.reset(seed=0)
+    px, py, _ = cyl.PAD_POSITION_M
+    upside_down = np.array([0.0, 1.0, 0.0, 0.0])  # half a turn about x
+    assert cyl.tilt_cosine(upside_down) == pytest.approx(1.0)
+    assert _settle(env, [px, py, cyl.CYLINDER_HALF_HEIGHT_M], upside_down)
