@@ -175,6 +175,10 @@ class Task:
     """The values the task keeps per episode, by name, with their shape for one
     environment (``()`` for a number): its reset sets them and :meth:`evaluate` may
     update them (:attr:`SimArrays.episode <gym_soarm.sim.arrays.SimArrays.episode>`)."""
+    host_episode_values: ClassVar[frozenset[str]] = frozenset()
+    """Those of :attr:`episode_shapes` that only a reset writes and only infos that are
+    not numbers read (a grid cell): a vector env on a device keeps them in host memory,
+    so that reading them each step never waits for the device."""
 
     def __init__(self, spec: TaskSpec) -> None:
         self.spec = spec

@@ -150,8 +150,11 @@ class BatchedVectorEnv(SoArmVectorBase):
 
         self._task = first.task_logic  # scores the batch; per-env values live in _episode
         self._backend = self._build_backend(physics)
+        host = self._task.host_episode_values  # read as Python values: kept on the host
         self._episode = {
-            name: zeros_where((num_envs, *shape), physics, self.device)
+            name: np.zeros((num_envs, *shape))
+            if name in host
+            else zeros_where((num_envs, *shape), physics, self.device)
             for name, shape in self._task.episode_shapes.items()
         }
         # The step, written once (gym_soarm.envs.core), over the whole batch.

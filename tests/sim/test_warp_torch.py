@@ -236,3 +236,22 @@ def test_bad_array_apis_and_torch_for_the_process_env_are_refused(kwargs, messag
         _make(**kwargs)
     if "must be one of" in message:
         assert "'numpy'" in str(raised.value) and "'torch'" in str(raised.value)
+
+
+def test_a_grid_cell_read_each_step_stays_in_host_memory():
+    # The cube's grid cell, an info that is not a number, is read every step: kept on the
+    # host, it never makes a step wait for the device; the yaw stays with the worlds.
+    envs = _make("warp", array_api="torch")
+    try:
+        options = {"cube_grid_position": 4, "cube_rotation_deg": 90.0}
+        _, info = envs.reset(seed=0, options=options)
+        episode = envs.unwrapped._episode
+        assert isinstance(episode["grid_cell"], np.ndarray)
+        assert isinstance(episode["yaw_deg"], torch.Tensor)
+        assert list(info["cube_grid_position"]) == [4] * N
+        for _ in range(2):
+            *_, info = envs.step(torch.zeros((N, 6)))
+        assert list(info["cube_grid_position"]) == [4] * N
+        assert torch.equal(info["cube_rotation_deg"].cpu(), torch.full((N,), 90.0))
+    finally:
+        envs.close()
