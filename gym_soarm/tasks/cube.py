@@ -144,8 +144,8 @@ class CubeGridTask(Task):
     option_keys: ClassVar[tuple[str, ...]] = GRID_OPTION_KEYS
     placements: ClassVar[tuple[str, ...]] = ("grid", "uniform")
     episode_shapes: ClassVar = MappingProxyType({"grid_cell": (), "yaw_deg": ()})
-    host_episode_values: ClassVar = frozenset({"grid_cell"})
     """The cube's start cell (-1 when placed anywhere) and yaw, for the info."""
+    host_episode_values: ClassVar = frozenset({"grid_cell"})
     cube = CUBE.name
 
     def __init__(self, spec) -> None:

@@ -180,7 +180,7 @@ class PickAndPlaceCylinderTask(Task):
         return {
             "cylinder_start_xy": sim.episode["start_xy"],
             "cylinder_pos": sim.object_position(self.cylinder),
-            "cylinder_tilt_deg": tilt,
+            "cylinder_tilt_deg": tilt,  # from vertical, either end up: 0 to 90
             "target_pos": sim.fixture_position(PAD.name),
         }
 

@@ -45,24 +45,25 @@ class EpisodeClock:
     Holds the steps of each environment's episode (:attr:`elapsed`, as Gymnasium's
     ``TimeLimit`` counts them) and which episodes ended and wait for a reset
     (:attr:`ended`). Before a step, :meth:`plan` says which environments reset instead
-    of stepping (``NEXT_STEP``) and which reach the limit with this step; after it,
-    :meth:`advance` counts the step and notes the ends.
+    of stepping (``NEXT_STEP``) and which reach the time limit with this step; after
+    it, :meth:`advance` counts the step and notes the ends.
     """
 
-    def __init__(self, num_envs: int, limit: int | None, mode: AutoresetMode) -> None:
-        self.limit, self.mode = limit, mode
+    def __init__(self, num_envs: int, mode: AutoresetMode) -> None:
+        self.mode = mode
         self.elapsed = np.zeros(num_envs, dtype=np.int64)
         self.ended = np.zeros(num_envs, dtype=np.bool_)
 
-    def plan(self) -> tuple[np.ndarray, np.ndarray]:
+    def plan(self, limit: int | None) -> tuple[np.ndarray, np.ndarray]:
         """``(restart, time_up)``: the environments that reset instead of stepping, and
-        those whose step reaches the time limit (truncated, whatever else happens)."""
+        those whose step reaches the time limit ``limit`` (truncated, whatever else
+        happens; None: no limit)."""
         restart = np.zeros_like(self.ended)
         if self.mode is AutoresetMode.NEXT_STEP:
             restart = self.ended.copy()
         time_up = np.zeros_like(self.ended)
-        if self.limit is not None:
-            time_up = ~restart & (self.elapsed + 1 >= self.limit)
+        if limit is not None:
+            time_up = ~restart & (self.elapsed + 1 >= limit)
         return restart, time_up
 
     def reset(self, mask: np.ndarray | None) -> None:
@@ -71,18 +72,26 @@ class EpisodeClock:
         self.elapsed[where] = 0
         self.ended[where] = False
 
-    def advance(self, restart: np.ndarray, terminated: np.ndarray, truncated: np.ndarray) -> None:
+    def advance(
+        self,
+        restart: np.ndarray,
+        terminated: np.ndarray,
+        truncated: np.ndarray,
+        done: np.ndarray | None = None,
+    ) -> None:
         """Count a step of the plan ``restart`` that ended these episodes (``SAME_STEP``
-        reset them already)."""
-        stepping = ~restart
+        reset them already). ``done``: the environments that took their step (None:
+        all; a step that raised part-way leaves the others as they were)."""
+        took = np.ones_like(restart) if done is None else np.asarray(done, dtype=np.bool_)
+        stepping = ~restart & took
         self.elapsed[stepping] += 1
-        self.elapsed[restart] = 0
+        self.elapsed[restart & took] = 0
         ended = (terminated | truncated) & stepping
         if self.mode is AutoresetMode.SAME_STEP:
             self.elapsed[ended] = 0
-            self.ended = np.zeros_like(ended)
+            self.ended[took] = False
         else:
-            self.ended = ended
+            self.ended[took] = ended[took]
 
 
 class SoArmVectorBase(VectorEnv):
@@ -134,7 +143,7 @@ class SoArmVectorBase(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._leaves = observation_leaves(self.single_observation_space)
         self._obs_arrays: list[np.ndarray] = []  # one array per leaf, filled by the subclass
-        self._clock = EpisodeClock(self.num_envs, self.max_episode_steps, self.autoreset_mode)
+        self._clock = EpisodeClock(self.num_envs, self.autoreset_mode)
         self._host_ends: tuple[np.ndarray, np.ndarray] | None = None
         self._started = False
 
@@ -217,7 +226,7 @@ class SoArmVectorBase(VectorEnv):
         array = check_actions(
             actions, self.action_space.shape, self.autoreset_mode, self._clock.ended
         )
-        restart, time_up = self._clock.plan()
+        restart, time_up = self._clock.plan(self.max_episode_steps)
         obs, rewards, terminated, truncated, infos = self._step(array, restart, time_up)
         self._note_ends(restart, terminated, truncated)
         return obs, rewards, terminated, truncated, infos

@@ -44,6 +44,7 @@ def layout(num_envs: int, action_shape: tuple[int, ...], leaves: list[Leaf]) -> 
     add("truncations", (num_envs,), np.bool_)
     add("restart", (num_envs,), np.bool_)  # the caller's plan for the step
     add("time_up", (num_envs,), np.bool_)
+    add("stepped", (num_envs,), np.bool_)  # the rows whose step is done (a block may raise)
     add("infos", (num_envs, INFO_NUMBERS), np.float64)
     for index, (_, shape, dtype) in enumerate(leaves):
         add(f"obs{index}", (num_envs, *shape), dtype)
@@ -130,6 +131,7 @@ class Block:
                     finals[row] = (obs, info)
                     obs, info = env.reset()
             self._write_obs(row, obs)
+            self.arrays["stepped"][row] = True
             infos.append(info)
         return self.info_writer.write(infos), finals
 

@@ -437,6 +437,7 @@ class SoArmVectorEnv(SoArmVectorBase):
         self._arrays["actions"][...] = actions
         self._arrays["restart"][...] = restart
         self._arrays["time_up"][...] = time_up
+        self._arrays["stepped"][...] = False
         messages = []
         finals: dict[int, tuple[Any, dict[str, Any]]] = {}
         parts = self._ask("step", [()] * self.num_processes, partial=self._after_failed_step)
@@ -455,10 +456,16 @@ class SoArmVectorEnv(SoArmVectorBase):
     def _after_failed_step(self, parts: list[Any]) -> None:
         """A block raised during a step: keep what the others sent (their new info
         layouts, their episodes' ends), so the next step reads them right. The clock
-        counts the step for every environment that was to step."""
+        counts the step of the environments that took it (their rows of ``stepped``); the
+        others keep their count and their pending reset."""
         self._info_reader.note([None if part is None else part[0] for part in parts])
         arrays = self._arrays
-        self._note_ends(arrays["restart"].copy(), arrays["terminations"], arrays["truncations"])
+        self._clock.advance(
+            arrays["restart"].copy(),
+            arrays["terminations"].copy(),
+            arrays["truncations"].copy(),
+            done=arrays["stepped"].copy(),
+        )
 
     # --- calls and attributes (arguments and results travel between processes: they
     # must pickle) ---------------------------------------------------------------------------

@@ -68,10 +68,10 @@ def test_the_time_limit_and_autoreset_have_one_owner(vector_env):
     ],
 )
 def test_the_clock_plans_restarts_and_the_time_limit(mode, ended_after, elapsed_after):
-    clock = EpisodeClock(3, limit=2, mode=mode)
+    clock = EpisodeClock(3, mode=mode)
     clock.elapsed[:] = [2, 1, 1]  # env 0 past the limit (never truncated twice), 1 and 2 at it
     clock.ended[:] = [False, False, True] if mode is AutoresetMode.NEXT_STEP else False
-    restart, time_up = clock.plan()
+    restart, time_up = clock.plan(2)
     if mode is AutoresetMode.NEXT_STEP:
         np.testing.assert_array_equal(restart, [False, False, True])
         np.testing.assert_array_equal(time_up, [True, True, False])  # a restart is not timed

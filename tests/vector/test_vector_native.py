@@ -262,6 +262,24 @@ def test_a_block_that_raises_leaves_the_others_readable():
         envs.close()
 
 
+def test_a_step_that_raises_part_way_counts_only_the_steps_taken():
+    # Rows 0 and 1 step here, 2 in the worker, then 3 raises there: the time limit's
+    # count goes on for the three that stepped, not for the one that did not.
+    envs = SoArmVectorEnv(4, num_processes=2, max_episode_steps=5, task="LiftCube-v0", **STATE)
+    zeros = np.zeros((4, 6), np.float32)
+    try:
+        envs.reset(seed=0)
+        envs.call_some([3], "__setattr__", "_check_open", None)
+        with pytest.raises(TypeError, match="not callable"):
+            envs.step(zeros)
+        np.testing.assert_array_equal(envs._clock.elapsed, [1, 1, 1, 0])
+        envs.call_some([3], "__delattr__", "_check_open")
+        envs.step(zeros)
+        np.testing.assert_array_equal(envs._clock.elapsed, [2, 2, 2, 1])
+    finally:
+        envs.close()
+
+
 CTRL_C_SCRIPT = """
 import sys, numpy as np
 from gym_soarm.vector.processes import SoArmVectorEnv
