@@ -13,29 +13,33 @@ from gym_soarm.vector.batched import BatchedVectorEnv
 from gym_soarm.vector.processes import SoArmVectorEnv
 
 
-def assert_same(a: Any, b: Any, where: str = "") -> None:
-    """Equal structure, types, dtypes, shapes and bits."""
+def assert_same(a: Any, b: Any, where: str = "", atol: float = 0.0) -> None:
+    """Equal structure, types, dtypes, shapes and bits; with ``atol``, floating-point
+    values only within ``atol`` of each other."""
     if isinstance(a, tuple):
         assert isinstance(b, tuple) and len(a) == len(b), where
         for i, (x, y) in enumerate(zip(a, b, strict=True)):
-            assert_same(x, y, f"{where}[{i}]")
+            assert_same(x, y, f"{where}[{i}]", atol)
         return
     if isinstance(a, dict):
         assert isinstance(b, dict) and set(a) == set(b), (where, set(a) ^ set(b))
         for key in a:
-            assert_same(a[key], b[key], f"{where}/{key}")
+            assert_same(a[key], b[key], f"{where}/{key}", atol)
         return
     if isinstance(a, np.ndarray) and a.dtype == object:
         assert isinstance(b, np.ndarray) and b.dtype == object and a.shape == b.shape, where
         for i, (x, y) in enumerate(zip(a, b, strict=True)):
             if isinstance(x, (dict, np.ndarray)):
-                assert_same(x, y, f"{where}[{i}]")
+                assert_same(x, y, f"{where}[{i}]", atol)
             else:
                 assert x == y, (where, i, x, y)
         return
     a, b = np.asarray(a), np.asarray(b)
     assert a.dtype == b.dtype and a.shape == b.shape, (where, a.dtype, b.dtype, a.shape, b.shape)
-    assert np.array_equal(a, b), (where, a, b)
+    if atol and a.dtype.kind == "f":
+        np.testing.assert_allclose(a, b, atol=atol, err_msg=where)
+    else:
+        assert np.array_equal(a, b), (where, a, b)
 
 
 def compare_with_sync(

@@ -34,7 +34,7 @@ import gymnasium as gym
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.sim.arrays import Array, SimArrays
+from gym_soarm.sim.arrays import Array, SimArrays, namespace
 from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.kinematics import JawPose, downward_rotation
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
@@ -123,6 +123,14 @@ def tilt_cosine(quaternion: Array) -> Array:
     return abs(1.0 - 2.0 * (x * x + y * y))
 
 
+def tilt_deg(quaternion: Array) -> Array:
+    """The angle (degrees, 0 to 90) between a body's z axis and the vertical, either way
+    up, from its (w, x, y, z) quaternion."""
+    xp = namespace(quaternion)
+    cosine = tilt_cosine(quaternion)
+    return xp.acos(xp.minimum(xp.maximum(cosine, -1.0), 1.0)) * (180.0 / math.pi)
+
+
 def draw_start(rng: np.random.Generator) -> tuple[float, float]:
     """The cylinder's start (x, y): uniform in :data:`START_REGION_M`, clear of the pad, of
     the strip the resting arm hides from the overview camera and of the base's surroundings.
@@ -174,9 +182,7 @@ class PickAndPlaceCylinderTask(Task):
         self.episode["start_xy"][0] = (x, y)
 
     def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Any]:
-        xp = sim.xp
-        cosine = tilt_cosine(sim.object_quaternion(self.cylinder))
-        tilt = xp.acos(xp.minimum(xp.maximum(cosine, -1.0), 1.0)) * (180.0 / math.pi)
+        tilt = tilt_deg(sim.object_quaternion(self.cylinder))
         return {
             "cylinder_start_xy": sim.episode["start_xy"],
             "cylinder_pos": sim.object_position(self.cylinder),
@@ -326,8 +332,7 @@ class PickAndPlaceCylinderStateExpert(PlaceStateExpert):
 
     def tilt_deg(self) -> float:
         """The cylinder's tilt from vertical (degrees)."""
-        cosine = float(tilt_cosine(self.physics.object_quaternion(CYLINDER.name)))
-        return math.degrees(math.acos(min(max(cosine, -1.0), 1.0)))
+        return float(tilt_deg(self.physics.object_quaternion(CYLINDER.name)))
 
     def _axis_yaw(self) -> float:
         """The direction of the cylinder's axis on the table (rad)."""

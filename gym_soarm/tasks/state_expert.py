@@ -311,26 +311,27 @@ class StateExpert:
     def _line_step(self, move: Move, arm: np.ndarray) -> np.ndarray:
         """The joints one straight-line step of the jaws towards ``move.position``."""
         site, yaw = self._kinematics.site_pose(arm)
-        remaining = np.asarray(move.position) - site
-        distance = float(np.linalg.norm(remaining))
-        speed = move.speed_m or self.config.line_speed_m
-        length = min(speed, distance)
-        waypoint = site if distance == 0.0 else site + remaining * (length / distance)
+        waypoint = self._waypoint(move, site)
         turn = math.remainder(move.yaw - _yaw_of(yaw), math.tau)
         limit = self.config.joint_speed_rad
         next_yaw = _yaw_of(yaw) + min(max(turn, -limit), limit)
         q, _, _ = self._kinematics.solve(arm, waypoint, downward_rotation(next_yaw))
         return q
 
+    def _waypoint(self, move: Move, site: np.ndarray) -> np.ndarray:
+        """One step from ``site`` along the straight line to ``move.position``, of
+        ``move.speed_m`` (default ``line_speed_m``) at most."""
+        remaining = np.asarray(move.position) - site
+        distance = float(np.linalg.norm(remaining))
+        length = min(move.speed_m or self.config.line_speed_m, distance)
+        return site if distance == 0.0 else site + remaining * (length / distance)
+
     def _pose_step(self, move: Move, arm: np.ndarray) -> np.ndarray:
         """The joints one step of a ``"pose"`` move: the jaws a straight-line step towards
         ``move.position``, their pitch a step of twice the joint speed towards
         ``move.pitch``, their roll as it is."""
         pose = self._kinematics.jaw_pose(arm)
-        remaining = np.asarray(move.position) - pose.position
-        distance = float(np.linalg.norm(remaining))
-        length = min(move.speed_m or self.config.line_speed_m, distance)
-        waypoint = pose.position + (remaining * (length / distance) if distance else 0.0)
+        waypoint = self._waypoint(move, pose.position)
         limit = 2.0 * self.config.joint_speed_rad  # mostly the wrist flex alone turns
         pitch = pose.pitch + min(max(move.pitch - pose.pitch, -limit), limit)
         q, _, _ = self._kinematics.solve_pose(arm, JawPose(waypoint, pitch, pose.roll))

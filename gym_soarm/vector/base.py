@@ -231,11 +231,6 @@ class SoArmVectorBase(VectorEnv):
         self._note_ends(restart, terminated, truncated)
         return obs, rewards, terminated, truncated, infos
 
-    @property
-    def _autoreset_envs(self) -> np.ndarray:
-        """Which environments' episodes ended and wait for a reset."""
-        return self._clock.ended
-
     def _note_ends(self, restart: np.ndarray, terminated: Any, truncated: Any) -> None:
         """The clock counts the step of the plan ``restart`` and notes which episodes
         ended. A transport that returns the ends as tensors on a device leaves their

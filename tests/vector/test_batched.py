@@ -108,8 +108,8 @@ def test_every_setting_and_autoreset_mode_matches_the_process_env(kwargs, mode):
         assert_same(reference.reset(seed=3), batched.reset(seed=3))
         rng = np.random.default_rng(0)
         for _ in range(2 * limit + 3):
-            if mode is AutoresetMode.DISABLED and reference._autoreset_envs.any():
-                mask = reference._autoreset_envs.copy()
+            if mode is AutoresetMode.DISABLED and reference._clock.ended.any():
+                mask = reference._clock.ended.copy()
                 options = {"reset_mask": mask}
                 assert_same(reference.reset(options=options), batched.reset(options=options))
             actions = rng.uniform(-0.5, 0.5, reference.action_space.shape)
