@@ -16,21 +16,9 @@ from gym_soarm import constants
 from gym_soarm.sim.arrays import Array, SimArrays
 from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
-from gym_soarm.tasks.base import (
-    Evaluation,
-    RewardWeights,
-    TaskSpec,
-    fixture_position_field,
-)
+from gym_soarm.tasks.base import TaskSpec, fixture_position_field
 from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M, CUBE_STATE_FIELDS, CubeGridTask
-from gym_soarm.tasks.rewards import (
-    PLACE_MARGIN_M,
-    RESTING_SPEED_M_S,
-    lift_progress,
-    pick_and_place_terms,
-    pick_progress,
-    tolerance,
-)
+from gym_soarm.tasks.placing import PlacementScoring
 from gym_soarm.tasks.scripted import PlaceExpert
 from gym_soarm.tasks.state_expert import PlaceStateExpert
 
@@ -57,48 +45,25 @@ GOAL = Fixture(
 PLACE_HEIGHT_TOL_M = 0.005
 
 
-class PickAndPlaceTask(CubeGridTask):
+class PickAndPlaceTask(PlacementScoring, CubeGridTask):
     """Pick the cube up and put it down, released and at rest, on the green pad."""
 
-    weights = RewardWeights({"reach": 0.1, "grasp": 0.2, "lift": 0.3, "place": 0.4})
     state_fields: ClassVar = (*CUBE_STATE_FIELDS, fixture_position_field("goal", GOAL.name))
     goal_pairs: ClassVar = (("cube_pos", "goal_pos"),)
+    carried = CUBE.name
+    placed_key = "on_goal"
+    distance_key = "goal_distance_m"
+    over_radius_m = GOAL_RADIUS_M
+    near_bound_m = GOAL_RADIUS_M / 2
 
-    def _goal_distance(self, sim: SimArrays) -> Array:
-        """Horizontal distance (m) from the cube's centre to the pad's centre."""
+    def placed(self, sim: SimArrays) -> tuple[Array, Array]:
+        """On the pad: the cube's centre within its radius and its bottom on the pad's top."""
         offset = sim.object_position(self.cube)[..., :2] - sim.fixture_position(GOAL.name)[..., :2]
-        return batch_norm(offset)
-
-    def _on_goal(self, sim: SimArrays, goal_distance: Array) -> Array:
-        height = sim.object_height(self.cube)
-        return (goal_distance <= GOAL_RADIUS_M) & (
-            sim.xp.abs(height - GOAL_TOP_Z_M) <= PLACE_HEIGHT_TOL_M
+        distance = batch_norm(offset)
+        on_goal = (distance <= GOAL_RADIUS_M) & (
+            sim.xp.abs(sim.object_height(self.cube) - GOAL_TOP_Z_M) <= PLACE_HEIGHT_TOL_M
         )
-
-    def evaluate(self, sim: SimArrays) -> Evaluation:
-        goal_distance = self._goal_distance(sim)
-        on_goal = self._on_goal(sim, goal_distance)
-        return {
-            "success": (
-                on_goal
-                & ~sim.touched_by_jaws(self.cube)
-                & (sim.object_speed(self.cube) < RESTING_SPEED_M_S)
-            ),
-            "on_goal": on_goal,
-            "goal_distance_m": goal_distance,
-            **pick_progress(sim, self.cube),
-        }
-
-    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
-        goal_distance = evaluation["goal_distance_m"]
-        return pick_and_place_terms(
-            on_target=evaluation["on_goal"],
-            grasped=evaluation["grasped"],
-            reach_distance_m=evaluation["reach_distance_m"],
-            lift=lift_progress(evaluation["height_m"]),
-            over_target=goal_distance <= GOAL_RADIUS_M,
-            near_target=tolerance(goal_distance, GOAL_RADIUS_M / 2, PLACE_MARGIN_M),
-        )
+        return on_goal, distance
 
 
 class PickAndPlaceExpert(PlaceExpert):

@@ -43,20 +43,12 @@ from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
     GRIPPER_POSITION_FIELD,
     Evaluation,
-    RewardWeights,
     Task,
     TaskSpec,
     fixture_position_field,
     object_pose_fields,
 )
-from gym_soarm.tasks.rewards import (
-    PLACE_MARGIN_M,
-    RESTING_SPEED_M_S,
-    lift_progress,
-    pick_and_place_terms,
-    pick_progress,
-    tolerance,
-)
+from gym_soarm.tasks.placing import PlacementScoring
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, PlaceExpert
 from gym_soarm.tasks.state_expert import (
     DEFAULT_STATE_CONFIG,
@@ -155,10 +147,9 @@ def draw_start(rng: np.random.Generator) -> tuple[float, float]:
     )
 
 
-class PickAndPlaceCylinderTask(Task):
+class PickAndPlaceCylinderTask(PlacementScoring, Task):
     """Pick the cylinder up and stand it, released and at rest, upright on the purple pad."""
 
-    weights = RewardWeights({"reach": 0.1, "grasp": 0.2, "lift": 0.3, "place": 0.4})
     state_fields: ClassVar = (
         *object_pose_fields(CYLINDER.name),
         GRIPPER_POSITION_FIELD,
@@ -167,7 +158,12 @@ class PickAndPlaceCylinderTask(Task):
     goal_pairs: ClassVar = (("cylinder_pos", "pad_pos"),)
     episode_shapes: ClassVar = MappingProxyType({"start_xy": (2,)})
     """Where the cylinder started (x, y; m), for the info."""
-    cylinder = CYLINDER.name
+    cylinder = carried = CYLINDER.name
+    placed_key = "standing_on_pad"
+    distance_key = "pad_distance_m"
+    over_radius_m = PAD_RADIUS_M
+    near_bound_m = PAD_RADIUS_M / 2
+    lift_dead_band_m = LIFT_DEAD_BAND_M
 
     def initialize_episode(
         self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
@@ -190,46 +186,15 @@ class PickAndPlaceCylinderTask(Task):
             "target_pos": sim.fixture_position(PAD.name),
         }
 
-    # --- pieces -------------------------------------------------------------------------
-    def _pad_distance(self, sim: SimArrays) -> Array:
-        """Horizontal distance (m) from the cylinder's centre to the pad's centre."""
-        offset = (
-            sim.object_position(self.cylinder)[..., :2] - sim.fixture_position(PAD.name)[..., :2]
-        )
-        return batch_norm(offset)
-
-    def _standing_on_pad(self, sim: SimArrays, pad_distance: Array) -> Array:
-        """Upright, centred within the pad's radius and with its bottom on the table."""
+    def placed(self, sim: SimArrays) -> tuple[Array, Array]:
+        """Standing on the pad: upright, centred within the pad's radius and with its
+        bottom on the table."""
         position = sim.object_position(self.cylinder)
+        distance = batch_norm(position[..., :2] - sim.fixture_position(PAD.name)[..., :2])
         upright = tilt_cosine(sim.object_quaternion(self.cylinder)) >= _COS_MAX_TILT
         bottom = position[..., 2] - CYLINDER_HALF_HEIGHT_M - constants.TABLE_TOP_Z_M
         on_table = sim.xp.abs(bottom) <= PLACE_HEIGHT_TOL_M
-        return (pad_distance <= PAD_RADIUS_M) & upright & on_table
-
-    def evaluate(self, sim: SimArrays) -> Evaluation:
-        pad_distance = self._pad_distance(sim)
-        standing = self._standing_on_pad(sim, pad_distance)
-        return {
-            "success": (
-                standing
-                & ~sim.touched_by_jaws(self.cylinder)
-                & (sim.object_speed(self.cylinder) < RESTING_SPEED_M_S)
-            ),
-            "standing_on_pad": standing,
-            "pad_distance_m": pad_distance,
-            **pick_progress(sim, self.cylinder),
-        }
-
-    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
-        pad_distance = evaluation["pad_distance_m"]
-        return pick_and_place_terms(
-            on_target=evaluation["standing_on_pad"],
-            grasped=evaluation["grasped"],
-            reach_distance_m=evaluation["reach_distance_m"],
-            lift=lift_progress(evaluation["height_m"], dead_band_m=LIFT_DEAD_BAND_M),
-            over_target=pad_distance <= PAD_RADIUS_M,
-            near_target=tolerance(pad_distance, PAD_RADIUS_M / 2, PLACE_MARGIN_M),
-        )
+        return (distance <= PAD_RADIUS_M) & upright & on_table, distance
 
 
 CYLINDER_EXPERT_CONFIG = dataclasses.replace(

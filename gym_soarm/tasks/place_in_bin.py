@@ -35,7 +35,6 @@ from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
     GRIPPER_POSITION_FIELD,
     Evaluation,
-    RewardWeights,
     Task,
     TaskSpec,
     fixture_position_field,
@@ -43,14 +42,7 @@ from gym_soarm.tasks.base import (
 )
 from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M, cube_reach
 from gym_soarm.tasks.open_box import OverRimExpert, OverRimStateExpert
-from gym_soarm.tasks.rewards import (
-    PLACE_MARGIN_M,
-    RESTING_SPEED_M_S,
-    lift_progress,
-    pick_and_place_terms,
-    pick_progress,
-    tolerance,
-)
+from gym_soarm.tasks.placing import PlacementScoring
 
 BIN_POSITION_M: tuple[float, float, float] = (0.15, 0.30, 0.0)
 """Where the bin stands: the centre of its floor plate's underside, on the table."""
@@ -83,17 +75,19 @@ OVER_BIN_RADIUS_M = 0.02
 """A cube centre this close (horizontally) to the bin's centre counts as over the bin."""
 
 
-class PlaceInBinTask(Task):
+class PlaceInBinTask(PlacementScoring, Task):
     """Put the cube into the bin, released and at rest."""
 
-    weights = RewardWeights({"reach": 0.1, "grasp": 0.2, "lift": 0.3, "place": 0.4})
     state_fields: ClassVar = (
         *object_pose_fields(CUBE.name),
         GRIPPER_POSITION_FIELD,
         fixture_position_field("bin", BIN.name),
     )
     goal_pairs: ClassVar = (("cube_pos", "bin_pos"),)
-    cube = CUBE.name
+    cube = carried = CUBE.name
+    placed_key = "in_bin"
+    distance_key = "bin_distance_m"
+    over_radius_m = near_bound_m = OVER_BIN_RADIUS_M
 
     def initialize_episode(
         self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
@@ -117,45 +111,20 @@ class PlaceInBinTask(Task):
         )
 
     # --- geometry of the bin -----------------------------------------------------------
-    def _bin_offset(self, sim: SimArrays) -> Array:
-        """``(n, 2)``: (x, y) of the cube's centre relative to the bin's centre (m)."""
-        return sim.object_position(self.cube)[..., :2] - sim.fixture_position(BIN.name)[..., :2]
-
-    def _in_bin(self, sim: SimArrays, offset: Array) -> Array:
-        """The whole cube lies inside the bin's inner footprint, its top below the rim."""
+    def placed(self, sim: SimArrays) -> tuple[Array, Array]:
+        """In the bin: the whole cube inside the bin's inner footprint, its top below the rim."""
         xp = sim.xp
+        offset = sim.object_position(self.cube)[..., :2] - sim.fixture_position(BIN.name)[..., :2]
         reach_x, reach_y, reach_z = cube_reach(sim, self.cube)
         inside = (xp.abs(offset[..., 0]) + reach_x <= BIN_INNER_HALF_M) & (
             xp.abs(offset[..., 1]) + reach_y <= BIN_INNER_HALF_M
         )
         top = sim.object_position(self.cube)[..., 2] + reach_z - constants.TABLE_TOP_Z_M
-        return inside & (top < BIN_RIM_Z_M)
+        return inside & (top < BIN_RIM_Z_M), batch_norm(offset)
 
-    def evaluate(self, sim: SimArrays) -> Evaluation:
-        offset = self._bin_offset(sim)
-        in_bin = self._in_bin(sim, offset)
-        return {
-            "success": (
-                in_bin
-                & sim.touching(self.cube, BIN.name)
-                & ~sim.touched_by_jaws(self.cube)
-                & (sim.object_speed(self.cube) < RESTING_SPEED_M_S)
-            ),
-            "in_bin": in_bin,
-            "bin_distance_m": batch_norm(offset),
-            **pick_progress(sim, self.cube),
-        }
-
-    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
-        offset = evaluation["bin_distance_m"]
-        return pick_and_place_terms(
-            on_target=evaluation["in_bin"],
-            grasped=evaluation["grasped"],
-            reach_distance_m=evaluation["reach_distance_m"],
-            lift=lift_progress(evaluation["height_m"]),
-            over_target=offset <= OVER_BIN_RADIUS_M,
-            near_target=tolerance(offset, OVER_BIN_RADIUS_M, PLACE_MARGIN_M),
-        )
+    def settled(self, sim: SimArrays) -> Array:
+        """Out of the jaws, at rest and resting on the bin."""
+        return super().settled(sim) & sim.touching(self.cube, BIN.name)
 
     def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Any]:
         return {

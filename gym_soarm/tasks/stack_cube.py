@@ -33,20 +33,13 @@ from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import (
     GRIPPER_POSITION_FIELD,
     Evaluation,
-    RewardWeights,
     Task,
     TaskSpec,
     object_pose_fields,
 )
 from gym_soarm.tasks.cube import CUBE_HALF_M, CUBE_SIZE_M
-from gym_soarm.tasks.rewards import (
-    PLACE_MARGIN_M,
-    RESTING_SPEED_M_S,
-    lift_progress,
-    pick_and_place_terms,
-    pick_progress,
-    tolerance,
-)
+from gym_soarm.tasks.placing import PlacementScoring
+from gym_soarm.tasks.rewards import RESTING_SPEED_M_S
 from gym_soarm.tasks.scripted import PlaceExpert
 from gym_soarm.tasks.state_expert import PlaceStateExpert
 
@@ -86,18 +79,20 @@ STACK_HEIGHT_TOL_M = 0.005
 """How far the red cube's bottom may lie from the blue cube's top on a stack."""
 
 
-class StackCubeTask(Task):
+class StackCubeTask(PlacementScoring, Task):
     """Stack the red cube on the blue cube, released and at rest."""
 
-    weights = RewardWeights({"reach": 0.1, "grasp": 0.2, "lift": 0.3, "place": 0.4})
     state_fields: ClassVar = (
         *object_pose_fields(RED_CUBE.name),
         *object_pose_fields(BLUE_CUBE.name),
         GRIPPER_POSITION_FIELD,
     )
     goal_pairs: ClassVar = (("red_cube_pos", "blue_cube_pos"),)
-    top = RED_CUBE.name
+    top = carried = RED_CUBE.name
     bottom = BLUE_CUBE.name
+    placed_key = "on_blue"
+    distance_key = "offset_m"
+    over_radius_m = near_bound_m = STACK_RADIUS_M
 
     def initialize_episode(
         self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
@@ -125,45 +120,25 @@ class StackCubeTask(Task):
             )
 
     # --- geometry of the stack ---------------------------------------------------------
-    def _offset(self, sim: SimArrays) -> Array:
-        """Horizontal distance (m) from the red cube's centre to the blue cube's centre."""
+    def placed(self, sim: SimArrays) -> tuple[Array, Array]:
+        """On the blue cube: centred within :data:`STACK_RADIUS_M` of it, the red cube's
+        bottom on its top (held or not)."""
         red, blue = sim.object_position(self.top), sim.object_position(self.bottom)
-        return batch_norm(red[..., :2] - blue[..., :2])
-
-    def _on_blue(self, sim: SimArrays, offset: Array) -> Array:
-        """The red cube sits on top of the blue cube (held or not)."""
-        blue_top = sim.object_position(self.bottom)[..., 2] + CUBE_HALF_M
+        offset = batch_norm(red[..., :2] - blue[..., :2])
+        blue_top = blue[..., 2] + CUBE_HALF_M
         red_bottom = sim.object_height(self.top) + constants.TABLE_TOP_Z_M
-        return (offset <= STACK_RADIUS_M) & (
+        on_blue = (offset <= STACK_RADIUS_M) & (
             sim.xp.abs(red_bottom - blue_top) <= STACK_HEIGHT_TOL_M
         )
+        return on_blue, offset
 
-    def evaluate(self, sim: SimArrays) -> Evaluation:
-        offset = self._offset(sim)
-        on_blue = self._on_blue(sim, offset)
-        return {
-            "success": (
-                on_blue
-                & sim.touching(self.top, self.bottom)
-                & ~sim.touched_by_jaws(self.top)
-                & ~sim.touched_by_jaws(self.bottom)
-                & (sim.object_speed(self.top) < RESTING_SPEED_M_S)
-                & (sim.object_speed(self.bottom) < RESTING_SPEED_M_S)
-            ),
-            "on_blue": on_blue,
-            "offset_m": offset,
-            **pick_progress(sim, self.top),
-        }
-
-    def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
-        offset = evaluation["offset_m"]
-        return pick_and_place_terms(
-            on_target=evaluation["on_blue"],
-            grasped=evaluation["grasped"],
-            reach_distance_m=evaluation["reach_distance_m"],
-            lift=lift_progress(evaluation["height_m"]),
-            over_target=offset <= STACK_RADIUS_M,
-            near_target=tolerance(offset, STACK_RADIUS_M, PLACE_MARGIN_M),
+    def settled(self, sim: SimArrays) -> Array:
+        """Both cubes out of the jaws and at rest, the red one touching the blue one."""
+        return (
+            super().settled(sim)
+            & sim.touching(self.top, self.bottom)
+            & ~sim.touched_by_jaws(self.bottom)
+            & (sim.object_speed(self.bottom) < RESTING_SPEED_M_S)
         )
 
     def compute_info(self, sim: SimArrays, evaluation: Evaluation) -> dict[str, Any]:
