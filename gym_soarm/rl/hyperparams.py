@@ -226,7 +226,7 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
             "torch_threads": 2,
             "eval_episodes": 30,
             "algo": {
-                "demos": 60,
+                "demos": 150,
                 "dart_std": 0.003,
                 "epochs": 30,
                 "batch_size": 64,
@@ -249,7 +249,7 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "beta_decay": 0.5,
             },
         },
-        REACH: {"algo": {"dart_std": 0.01}},
+        REACH: {"algo": {"dart_std": 0.01, "demos": 60}},
     },
 }
 """The pixel students' recipes (:mod:`gym_soarm.rl.pixels`): the same keys as the state
