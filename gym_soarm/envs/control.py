@@ -332,6 +332,17 @@ class EndEffectorControl(ControlMode):
         self._gripper_scale = float(units.scale[_GRIPPER])
         self._gripper_offset = float(units.offset[_GRIPPER])
         self._errors = (0.0, 0.0)
+        pose_low, pose_high = self.pose_bounds
+        gripper_low, gripper_high = self._gripper_bounds
+        self.action_space = self._box((*pose_low, gripper_low), (*pose_high, gripper_high))
+        self._action_low = self.action_space.low.astype(np.float64)
+        self._action_high = self.action_space.high.astype(np.float64)
+        self.description = f"{self.pose_description}, the gripper's absolute target in {units.name}"
+
+    pose_bounds: tuple[tuple[float, ...], tuple[float, ...]]
+    """The lower and upper bounds of the action's five pose values (before the gripper's)."""
+    pose_description: str
+    """What the action's five pose values are, for :attr:`description`."""
 
     def pose(self, joints_rad: np.ndarray) -> np.ndarray:
         """``[x, y, z, pitch, roll]`` (m, base frame; rad) of the jaws at these joints.
@@ -377,28 +388,15 @@ class EndEffectorDeltaControl(EndEffectorControl):
 
     name = EE_DELTA
     action_names = EE_DELTA_NAMES
-
-    def __init__(
-        self,
-        units: JointUnits,
-        low_rad: np.ndarray,
-        high_rad: np.ndarray,
-        kinematics: ArmKinematics,
-    ) -> None:
-        super().__init__(units, low_rad, high_rad, kinematics)
-        move, turn = EE_DELTA_LIMIT_M, EE_ANGLE_DELTA_LIMIT_RAD
-        gripper_low, gripper_high = self._gripper_bounds
-        self.action_space = self._box(
-            (-move, -move, -move, -turn, -turn, gripper_low),
-            (move, move, move, turn, turn, gripper_high),
-        )
-        self._action_low = self.action_space.low.astype(np.float64)
-        self._action_high = self.action_space.high.astype(np.float64)
-        self.description = (
-            "[dx, dy, dz, d_pitch, d_roll, gripper]: moves of the jaw centre in the robot's "
-            f"base frame in metres (each within +-{move}), changes of the jaws' pitch and "
-            f"roll in radians (within +-{turn}), the gripper's absolute target in {units.name}"
-        )
+    pose_bounds = (
+        (-EE_DELTA_LIMIT_M,) * 3 + (-EE_ANGLE_DELTA_LIMIT_RAD,) * 2,
+        (EE_DELTA_LIMIT_M,) * 3 + (EE_ANGLE_DELTA_LIMIT_RAD,) * 2,
+    )
+    pose_description = (
+        "[dx, dy, dz, d_pitch, d_roll, gripper]: moves of the jaw centre in the robot's "
+        f"base frame in metres (each within +-{EE_DELTA_LIMIT_M}), changes of the jaws' pitch "
+        f"and roll in radians (within +-{EE_ANGLE_DELTA_LIMIT_RAD})"
+    )
 
     def targets(self, action: np.ndarray, current_rad: np.ndarray) -> np.ndarray:
         action = np.minimum(np.maximum(action, self._action_low), self._action_high)
@@ -482,27 +480,14 @@ class EndEffectorPoseControl(EndEffectorControl):
 
     name = EE_POSE
     action_names = EE_POSE_NAMES
-
-    def __init__(
-        self,
-        units: JointUnits,
-        low_rad: np.ndarray,
-        high_rad: np.ndarray,
-        kinematics: ArmKinematics,
-    ) -> None:
-        super().__init__(units, low_rad, high_rad, kinematics)
-        gripper_low, gripper_high = self._gripper_bounds
-        self.action_space = self._box(
-            (*EE_POSITION_LOW_M, -math.pi, -math.pi, gripper_low),
-            (*EE_POSITION_HIGH_M, math.pi, math.pi, gripper_high),
-        )
-        self._action_low = self.action_space.low.astype(np.float64)
-        self._action_high = self.action_space.high.astype(np.float64)
-        self.description = (
-            "[x, y, z, pitch, roll, gripper]: the jaw centre's position in the robot's base "
-            "frame in metres, the jaws' pitch and roll in radians (-pi to pi), the "
-            f"gripper's absolute target in {units.name}"
-        )
+    pose_bounds = (
+        (*EE_POSITION_LOW_M, -math.pi, -math.pi),
+        (*EE_POSITION_HIGH_M, math.pi, math.pi),
+    )
+    pose_description = (
+        "[x, y, z, pitch, roll, gripper]: the jaw centre's position in the robot's base "
+        "frame in metres, the jaws' pitch and roll in radians (-pi to pi)"
+    )
 
     def targets(self, action: np.ndarray, current_rad: np.ndarray) -> np.ndarray:
         action = np.minimum(np.maximum(action, self._action_low), self._action_high)

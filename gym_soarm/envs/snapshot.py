@@ -47,6 +47,8 @@ from typing import TYPE_CHECKING, Any
 import mujoco
 import numpy as np
 
+from gym_soarm.sim.randomization import PHYSICS_FIELDS, VISUAL_FIELDS
+
 if TYPE_CHECKING:
     from gym_soarm.envs.world import World
 
@@ -62,18 +64,8 @@ MODEL_FIELDS: tuple[str, ...] = (
     "body_pos",
     "body_quat",
     # Written by the randomiser (gym_soarm.sim.randomization.Randomizer).
-    "light_dir",
-    "light_diffuse",
-    "mat_rgba",
-    "cam_pos",
-    "cam_quat",
-    "cam_fovy",
-    "body_mass",
-    "body_inertia",
-    "geom_friction",
-    "actuator_gainprm",
-    "actuator_biasprm",
-    "dof_damping",
+    *VISUAL_FIELDS,
+    *PHYSICS_FIELDS,
 )
 """The ``MjModel`` arrays that a reset may change on the environment's own model copy."""
 HEADLIGHT_AMBIENT = "vis.headlight.ambient"

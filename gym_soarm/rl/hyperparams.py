@@ -193,6 +193,21 @@ _PIXEL_ENV: dict[str, Any] = {
     "control_mode": "joint_pos",
 }
 
+_PIXEL_STUDENT: dict[str, Any] = {
+    "dart_std": 0.003,
+    "batch_size": 64,
+    "learning_rate": 1e-3,
+    "shift_px": 4,
+    "downsample": 2,
+    "channels": [16, 32, 32, 32],
+    "hidden": [256, 256],
+    "max_memory_gb": 8.0,
+    "aux_weight": 1.0,
+    "aux_input": True,
+    "lr_schedule": "cosine",
+}
+"""What the BC and DAgger pixel recipes share: the network, its inputs and its fit."""
+
 PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
     "bc": {
         "default": {
@@ -201,19 +216,9 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
             "torch_threads": 2,
             "eval_episodes": 20,
             "algo": {
+                **_PIXEL_STUDENT,
                 "demos": 100,
-                "dart_std": 0.003,
                 "epochs": 60,
-                "batch_size": 64,
-                "learning_rate": 1e-3,
-                "shift_px": 4,
-                "downsample": 2,
-                "channels": [16, 32, 32, 32],
-                "hidden": [256, 256],
-                "max_memory_gb": 8.0,
-                "aux_weight": 1.0,
-                "aux_input": True,
-                "lr_schedule": "cosine",
                 "episode_weighting": False,
             },
         },
@@ -226,19 +231,9 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
             "torch_threads": 2,
             "eval_episodes": 30,
             "algo": {
+                **_PIXEL_STUDENT,
                 "demos": 150,
-                "dart_std": 0.003,
                 "epochs": 30,
-                "batch_size": 64,
-                "learning_rate": 1e-3,
-                "shift_px": 4,
-                "downsample": 2,
-                "channels": [16, 32, 32, 32],
-                "hidden": [256, 256],
-                "max_memory_gb": 8.0,
-                "aux_weight": 1.0,
-                "aux_input": True,
-                "lr_schedule": "cosine",
                 "episode_weighting": True,
                 "round_learning_rate": None,
                 "rounds": 8,

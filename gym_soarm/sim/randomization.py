@@ -36,6 +36,24 @@ LEVELS: tuple[str, ...] = ("none", "light", "heavy")
 """Values of ``visual_randomization`` and ``physics_randomization``."""
 SERVO_MODELS: tuple[str, ...] = ("ideal", "sts3215")
 """Values of ``servo_model``."""
+VISUAL_FIELDS: tuple[str, ...] = (
+    "light_dir",
+    "light_diffuse",
+    "mat_rgba",
+    "cam_pos",
+    "cam_quat",
+    "cam_fovy",
+)
+"""The ``MjModel`` arrays a visual variation writes (besides the headlight's ambient)."""
+PHYSICS_FIELDS: tuple[str, ...] = (
+    "body_mass",
+    "body_inertia",
+    "geom_friction",
+    "actuator_gainprm",
+    "actuator_biasprm",
+    "dof_damping",
+)
+"""The ``MjModel`` arrays a physics variation writes."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -244,30 +262,14 @@ class Randomizer:
             n: np.flatnonzero(m.geom_bodyid == b) for n, b in self._object_bodies.items()
         }
         self._actuators, self._arm_dofs = arm_indices(m)
-        self._saved = {
-            field: getattr(m, field).copy()
-            for field in (
-                "light_dir",
-                "light_diffuse",
-                "mat_rgba",
-                "cam_pos",
-                "cam_quat",
-                "cam_fovy",
-                "body_mass",
-                "body_inertia",
-                "geom_friction",
-                "actuator_gainprm",
-                "actuator_biasprm",
-                "dof_damping",
-            )
-        }
+        self._saved = {field: getattr(m, field).copy() for field in VISUAL_FIELDS + PHYSICS_FIELDS}
         self._saved_ambient = m.vis.headlight.ambient.copy()
 
     # --- visual ----------------------------------------------------------------------
     def restore_visual(self) -> None:
         """Write back the visual fields saved at construction."""
         m = self._model
-        for field in ("light_dir", "light_diffuse", "mat_rgba", "cam_pos", "cam_quat", "cam_fovy"):
+        for field in VISUAL_FIELDS:
             np.copyto(getattr(m, field), self._saved[field])
         m.vis.headlight.ambient[:] = self._saved_ambient
 
@@ -328,14 +330,7 @@ class Randomizer:
     def restore_physics(self) -> None:
         """Write back the physics fields saved at construction."""
         m = self._model
-        for field in (
-            "body_mass",
-            "body_inertia",
-            "geom_friction",
-            "actuator_gainprm",
-            "actuator_biasprm",
-            "dof_damping",
-        ):
+        for field in PHYSICS_FIELDS:
             np.copyto(getattr(m, field), self._saved[field])
 
     def physics(self, level: str, rng: np.random.Generator) -> tuple[dict[str, Any], int]:

@@ -36,7 +36,7 @@ import numpy as np
 from gym_soarm import constants
 from gym_soarm.sim.arrays import Array, SimArrays, namespace
 from gym_soarm.sim.arrays import norm as batch_norm
-from gym_soarm.sim.kinematics import JawPose, downward_rotation
+from gym_soarm.sim.kinematics import JawPose
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
@@ -233,19 +233,9 @@ class PickAndPlaceCylinderExpert(PlaceExpert):
         # Keep the jaws open while rising (the release phase opened them).
         self._gripper(self.config.gripper_open_rad)
 
-    def _choose_grasp_yaw(self, position: np.ndarray) -> float:
-        """A round object can be grasped from any side: the one needing least wrist roll."""
-        seed = self._seed_towards(position)
-        best_yaw, best_cost = 0.0, math.inf
-        for index in range(_GRASP_YAW_CANDIDATES):
-            yaw = math.tau * index / _GRASP_YAW_CANDIDATES
-            q, position_error, rotation_error = self._kinematics.solve(
-                seed, position, downward_rotation(yaw)
-            )
-            cost = abs(q[self._roll]) + 100.0 * (position_error + rotation_error)
-            if cost < best_cost:
-                best_yaw, best_cost = yaw, cost
-        return best_yaw
+    def _grasp_yaws(self) -> list[float]:
+        """A round object can be grasped from any side."""
+        return [math.tau * index / _GRASP_YAW_CANDIDATES for index in range(_GRASP_YAW_CANDIDATES)]
 
 
 CYLINDER_STATE_CONFIG = dataclasses.replace(

@@ -330,13 +330,16 @@ class ScriptedExpert:
         seed[0] = self._kinematics.pan_towards(position)
         return seed
 
-    def _choose_grasp_yaw(self, position: np.ndarray) -> float:
-        """Of the object's four face directions, the one the jaws reach with least roll."""
+    def _grasp_yaws(self) -> list[float]:
+        """The yaws the jaws may grasp the object at: its four face directions."""
         base = self.env.physics.object_yaw(self.grasp_object())
-        best_yaw, best_cost = base, math.inf
+        return [base + quarter * _QUARTER_TURN_RAD for quarter in range(4)]
+
+    def _choose_grasp_yaw(self, position: np.ndarray) -> float:
+        """Of :meth:`_grasp_yaws`, the one the jaws reach with least wrist roll."""
         seed = self._seed_towards(position)
-        for quarter in range(4):
-            yaw = base + quarter * _QUARTER_TURN_RAD
+        best_yaw, best_cost = 0.0, math.inf
+        for yaw in self._grasp_yaws():
             q, position_error, rotation_error = self._kinematics.solve(
                 seed, position, downward_rotation(yaw)
             )
