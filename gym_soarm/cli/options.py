@@ -93,6 +93,20 @@ def add_dataset_scene_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def dataset_scene_keywords(args: argparse.Namespace) -> dict[str, Any]:
+    """The keywords of :func:`~gym_soarm.real.replay.replay` and
+    :func:`~gym_soarm.real.sysid.fit_dynamics` that :func:`add_dataset_scene_arguments`'
+    flags and the settings flags give (all but the episodes)."""
+    return {
+        "units": args.units,
+        "calibration": args.calibration,
+        "wrist_roll_offset_deg": args.wrist_roll_offset_deg,
+        "task": args.task,
+        "seed": args.seed,
+        "settings": settings_given(args),
+    }
+
+
 def camera_config_argument(text: str) -> str | list[str]:
     """``--camera-config`` as the recorder takes it: a config name (``front_wrist``,
     ``none`` ...) as is, camera names (``front_camera,wrist_camera``) as a list."""

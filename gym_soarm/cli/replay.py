@@ -11,13 +11,12 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 from gym_soarm.cli.options import (
     add_dataset_scene_arguments,
     add_settings_arguments,
+    dataset_scene_keywords,
     settings_except,
-    settings_given,
 )
 from gym_soarm.cli.programs import program_name
 from gym_soarm.real.replay import REPLAY_OVERRIDES, plot_replay, replay
@@ -53,19 +52,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def replay_arguments(args: argparse.Namespace) -> dict[str, Any]:
-    """The keywords of :func:`gym_soarm.real.replay.replay` that the flags give."""
-    return {
-        "episodes": args.episode,
-        "units": args.units,
-        "calibration": args.calibration,
-        "wrist_roll_offset_deg": args.wrist_roll_offset_deg,
-        "task": args.task,
-        "seed": args.seed,
-        "settings": settings_given(args),
-    }
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; returns the process exit code."""
     parser = build_parser()
@@ -76,7 +62,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if path is not None and not Path(path).resolve().parent.is_dir():
             parser.error(f"{flag}: the folder of {path!r} does not exist; create it first.")
     try:
-        report = replay(args.root, **replay_arguments(args))
+        report = replay(args.root, episodes=args.episode, **dataset_scene_keywords(args))
     except (ValueError, TypeError, ImportError) as exc:
         parser.error(str(exc))
     print(report.table())

@@ -15,8 +15,8 @@ from gym_soarm import constants
 from gym_soarm.cli.options import (
     add_dataset_scene_arguments,
     add_settings_arguments,
+    dataset_scene_keywords,
     settings_except,
-    settings_given,
 )
 from gym_soarm.cli.programs import program_name
 from gym_soarm.real.dynamics import write_dynamics
@@ -94,14 +94,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         result = fit_dynamics(
             args.root,
             episodes=args.episodes,
-            units=args.units,
-            calibration=args.calibration,
-            wrist_roll_offset_deg=args.wrist_roll_offset_deg,
-            task=args.task,
-            seed=args.seed,
             delays=args.delays,
             iterations=args.iterations,
-            settings=settings_given(args),
+            **dataset_scene_keywords(args),
         )
     except (ValueError, TypeError, ImportError) as exc:
         parser.error(str(exc))

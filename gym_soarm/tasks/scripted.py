@@ -23,34 +23,18 @@ from gym_soarm import constants
 from gym_soarm.envs.control import ControlMode
 from gym_soarm.sim.kinematics import ArmKinematics, downward_rotation
 from gym_soarm.sim.physics import SoArmPhysics
+from gym_soarm.tasks.grasp_figures import GraspFigures
 
 _QUARTER_TURN_RAD = math.pi / 2
 
 
 @dataclasses.dataclass(frozen=True)
-class ExpertConfig:
-    """Figures of the scripted motion: heights in metres, durations in control steps."""
+class ExpertConfig(GraspFigures):
+    """Figures of the scripted motion: :class:`GraspFigures` and durations in control steps."""
 
-    hover_height_m: float = 0.05
-    """Height of the ``grasp_center`` site above the table while approaching."""
-    grasp_height_m: float = 0.018
-    """Height of the ``grasp_center`` site when closing: jaw tips just clear the table."""
     fixed_jaw_clearance_m: float = 0.004
-    """Gap left between the fixed jaw and the object while descending; closing closes it."""
-    carry_height_m: float = 0.075
-    """Height of the held object's centre while carrying it (and of the lift target)."""
-    lift_reach_m: tuple[float, float] = (0.13, 0.20)
-    """While lifting, the object also moves to this range of horizontal distances from the
-    shoulder pan axis, where the arm holds it high with the jaws still vertical."""
-    place_clearance_m: float = 0.003
-    """Height of the object's bottom above the pad when the jaws release it."""
-    retreat_height_m: float = 0.10
-    """Height of the ``grasp_center`` site after the release."""
     gripper_open_rad: float = 0.6
     """Gripper target while approaching: about 45 mm between the pads."""
-    gripper_closed_rad: float = -0.17453
-    """Gripper target while holding: the closed end of its range, the servo's torque limit
-    sets the grip force."""
     approach_steps: int = 55
     """Longest approach; a shorter joint move takes ``approach_speed_rad_per_step``."""
     approach_speed_rad_per_step: float = 0.03
@@ -68,6 +52,7 @@ class ExpertConfig:
     max_regrasps: int = 2
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         for field in dataclasses.fields(self):
             value = getattr(self, field.name)
             if field.name.endswith("_steps") and (
@@ -80,11 +65,6 @@ class ExpertConfig:
             raise ValueError(f"max_regrasps must be an int >= 0; got {self.max_regrasps!r}.")
         if self.max_regrasps < 0:
             raise ValueError(f"max_regrasps must be an int >= 0; got {self.max_regrasps!r}.")
-        low, high = self.lift_reach_m
-        if not 0.0 < low <= high:
-            raise ValueError(
-                f"lift_reach_m must be (min, max) metres with 0 < min <= max; got {self.lift_reach_m!r}."
-            )
         if not self.approach_speed_rad_per_step > 0.0:
             raise ValueError(
                 "approach_speed_rad_per_step must be > 0; "

@@ -36,6 +36,7 @@ from gym_soarm.envs.control import ControlMode
 from gym_soarm.sim.kinematics import ArmKinematics, JawPose, downward_rotation
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.sim.timing import DEFAULT_CONTROL_HZ
+from gym_soarm.tasks.grasp_figures import GraspFigures
 
 _QUARTER_TURN_RAD = math.pi / 2
 _N_ARM = len(constants.ARM_JOINT_NAMES)
@@ -47,25 +48,9 @@ READY_POSTURE_RAD = np.array([0.0, 0.0, 0.6, 1.1, 0.0])
 
 
 @dataclasses.dataclass(frozen=True)
-class StateExpertConfig:
-    """Figures of a state expert: heights in metres, speeds per control step (50 Hz)."""
+class StateExpertConfig(GraspFigures):
+    """Figures of a state expert: :class:`GraspFigures` and speeds per control step (50 Hz)."""
 
-    hover_height_m: float = 0.05
-    """Height of ``grasp_center`` above the table while coming over an object."""
-    grasp_height_m: float = 0.018
-    """Height of ``grasp_center`` when closing on an object on the table."""
-    fixed_jaw_clearance_m: float = 0.007
-    """Gap left between the fixed jaw and the object while descending."""
-    carry_height_m: float = 0.075
-    """Height of a held object's centre while carrying it (and of the lift target)."""
-    lift_reach_m: tuple[float, float] = (0.13, 0.20)
-    """Distances from the shoulder pan axis where a lifted object is held."""
-    place_clearance_m: float = 0.003
-    """Height of the object's bottom above its resting place when the jaws let go."""
-    retreat_height_m: float = 0.10
-    """Height of ``grasp_center`` after a release."""
-    gripper_open_rad: float = 0.8
-    gripper_closed_rad: float = -0.17453
     joint_speed_rad: float = 0.05
     """Fastest change of an arm joint's target per step."""
     joint_accel_rad: float = 0.02
@@ -90,15 +75,10 @@ class StateExpertConfig:
     """The same once lowered below the carry height."""
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         for field in dataclasses.fields(self):
             value = getattr(self, field.name)
-            if field.name == "lift_reach_m":
-                low, high = value
-                if not 0.0 < low <= high:
-                    raise ValueError(
-                        f"lift_reach_m must be (min, max) metres with 0 < min <= max; got {value!r}."
-                    )
-            elif field.name.endswith(("_speed_rad", "_speed_m", "_accel_rad")) and not (
+            if field.name.endswith(("_speed_rad", "_speed_m", "_accel_rad")) and not (
                 isinstance(value, float | int) and value > 0
             ):
                 raise ValueError(f"{field.name} must be a number > 0; got {value!r}.")

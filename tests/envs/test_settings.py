@@ -30,7 +30,12 @@ from gym_soarm.cli import sysid as sysid_cli
 from gym_soarm.cli import teleop as teleop_cli
 from gym_soarm.cli import train as train_cli
 from gym_soarm.cli.docs import KEYWORDS_PATH, keywords_page
-from gym_soarm.cli.options import SETTINGS_DEST, settings_flag, settings_given
+from gym_soarm.cli.options import (
+    SETTINGS_DEST,
+    dataset_scene_keywords,
+    settings_flag,
+    settings_given,
+)
 from gym_soarm.envs.env import SoArmEnv
 from gym_soarm.envs.settings import EnvSettings, keyword_table, merge_keywords
 from gym_soarm.real.calibration import HOMING_TICKS
@@ -247,7 +252,7 @@ def _fake_dataset() -> ReplayDataset:
 
 
 def _replay(args: argparse.Namespace) -> EnvSettings:
-    kw = replay_cli.replay_arguments(args)
+    kw = dataset_scene_keywords(args)
     return replay_settings(
         _fake_dataset(),
         kw["task"],
