@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import importlib
 
-from gym_soarm.tasks.base import StateField, Task, TaskSpec
+from gym_soarm.tasks.base import Task, TaskSpec
 from gym_soarm.tasks.registry import (
     ENV_IDS,
     TASK_ENV_IDS,
@@ -20,6 +20,7 @@ from gym_soarm.tasks.registry import (
     task_spellings,
     unregister_task,
 )
+from gym_soarm.tasks.state_fields import StateField
 
 BUILTIN_TASK_MODULES: tuple[str, ...] = (
     "pick_and_place_cube",

@@ -21,12 +21,8 @@ from gym_soarm.sim.arrays import SimArrays, per_env
 from gym_soarm.sim.objects import SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
-from gym_soarm.tasks.base import (
-    GRIPPER_POSITION_FIELD,
-    Evaluation,
-    Task,
-    object_pose_fields,
-)
+from gym_soarm.tasks.base import Evaluation, Task
+from gym_soarm.tasks.state_fields import GRIPPER_POSITION_FIELD, object_pose_fields
 from gym_soarm.validation import ArgumentTypeError
 
 CUBE_SIZE_M = 0.03

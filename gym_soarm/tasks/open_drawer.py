@@ -49,20 +49,17 @@ from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.kinematics import downward_rotation
 from gym_soarm.sim.objects import Fixture, FixtureGeom, FixtureJoint, Scene
 from gym_soarm.sim.physics import SoArmPhysics
-from gym_soarm.tasks.base import (
+from gym_soarm.tasks.base import Evaluation, RewardWeights, Task, TaskSpec
+from gym_soarm.tasks.rewards import reach_closeness
+from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase, ScriptedExpert
+from gym_soarm.tasks.state_expert import Move, StateExpert
+from gym_soarm.tasks.state_fields import (
     GRIPPER_POSITION_FIELD,
-    Evaluation,
-    RewardWeights,
-    Task,
-    TaskSpec,
     fixture_position_field,
     position_field,
     quaternion_field,
     scalar_field,
 )
-from gym_soarm.tasks.rewards import reach_closeness
-from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, Phase, ScriptedExpert
-from gym_soarm.tasks.state_expert import Move, StateExpert
 
 # --- the cabinet (its frame: origin on the table under its centre, -y out of its front) ---
 CABINET_HALF_WIDTH_M = 0.075

@@ -16,11 +16,12 @@ from gym_soarm import constants
 from gym_soarm.sim.arrays import Array, SimArrays
 from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
-from gym_soarm.tasks.base import TaskSpec, fixture_position_field
+from gym_soarm.tasks.base import TaskSpec
 from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M, CUBE_STATE_FIELDS, CubeGridTask
 from gym_soarm.tasks.placing import PlacementScoring
 from gym_soarm.tasks.scripted import PlaceExpert
 from gym_soarm.tasks.state_expert import PlaceStateExpert
+from gym_soarm.tasks.state_fields import fixture_position_field
 
 GOAL_RADIUS_M = 0.04
 GOAL_TOP_Z_M = 0.001

@@ -40,14 +40,7 @@ from gym_soarm.sim.kinematics import JawPose
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
-from gym_soarm.tasks.base import (
-    GRIPPER_POSITION_FIELD,
-    Evaluation,
-    Task,
-    TaskSpec,
-    fixture_position_field,
-    object_pose_fields,
-)
+from gym_soarm.tasks.base import Evaluation, Task, TaskSpec
 from gym_soarm.tasks.placing import PlacementScoring
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, PlaceExpert
 from gym_soarm.tasks.state_expert import (
@@ -55,6 +48,11 @@ from gym_soarm.tasks.state_expert import (
     Move,
     PlaceStateExpert,
     StateExpertConfig,
+)
+from gym_soarm.tasks.state_fields import (
+    GRIPPER_POSITION_FIELD,
+    fixture_position_field,
+    object_pose_fields,
 )
 
 CYLINDER_RADIUS_M = 0.0145

@@ -31,19 +31,12 @@ from gym_soarm.sim.arrays import namespace as sim_namespace
 from gym_soarm.sim.objects import Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
-from gym_soarm.tasks.base import (
-    GRIPPER_POSITION_FIELD,
-    Evaluation,
-    RewardWeights,
-    Task,
-    TaskSpec,
-    object_pose_fields,
-    position_field,
-)
+from gym_soarm.tasks.base import Evaluation, RewardWeights, Task, TaskSpec
 from gym_soarm.tasks.cube import coloured_cubes
 from gym_soarm.tasks.rewards import LIFT_HEIGHT_M, lift_progress, pick_terms, reach_distance
 from gym_soarm.tasks.scripted import LiftExpert
 from gym_soarm.tasks.state_expert import LiftStateExpert
+from gym_soarm.tasks.state_fields import GRIPPER_POSITION_FIELD, object_pose_fields, position_field
 
 COLOURS: tuple[str, ...] = ("red", "green", "blue")
 """The cubes' colours, in declaration order; each cube is called ``<colour>_cube``."""

@@ -32,17 +32,15 @@ from gym_soarm.sim.kinematics import downward_rotation
 from gym_soarm.sim.objects import Fixture, Scene, open_box_geoms
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
-from gym_soarm.tasks.base import (
-    GRIPPER_POSITION_FIELD,
-    Evaluation,
-    Task,
-    TaskSpec,
-    fixture_position_field,
-    object_pose_fields,
-)
+from gym_soarm.tasks.base import Evaluation, Task, TaskSpec
 from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M, cube_reach
 from gym_soarm.tasks.open_box import OverRimExpert, OverRimStateExpert
 from gym_soarm.tasks.placing import PlacementScoring
+from gym_soarm.tasks.state_fields import (
+    GRIPPER_POSITION_FIELD,
+    fixture_position_field,
+    object_pose_fields,
+)
 
 BIN_POSITION_M: tuple[float, float, float] = (0.15, 0.30, 0.0)
 """Where the bin stands: the centre of its floor plate's underside, on the table."""

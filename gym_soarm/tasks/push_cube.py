@@ -39,13 +39,7 @@ from gym_soarm.sim.kinematics import downward_rotation
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
-from gym_soarm.tasks.base import (
-    Evaluation,
-    RewardWeights,
-    Task,
-    TaskSpec,
-    fixture_position_field,
-)
+from gym_soarm.tasks.base import Evaluation, RewardWeights, Task, TaskSpec
 from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M, CUBE_STATE_FIELDS
 from gym_soarm.tasks.rewards import (
     PLACED_CREDIT,
@@ -56,6 +50,7 @@ from gym_soarm.tasks.rewards import (
 )
 from gym_soarm.tasks.scripted import DEFAULT_CONFIG, ExpertConfig, NoGraspExpert, Phase
 from gym_soarm.tasks.state_expert import Move, StateExpert
+from gym_soarm.tasks.state_fields import fixture_position_field
 
 TARGET_HALF_M = 0.035
 """Half the side of the green square."""

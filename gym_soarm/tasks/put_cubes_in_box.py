@@ -41,18 +41,15 @@ from gym_soarm.sim.kinematics import downward_rotation
 from gym_soarm.sim.objects import Fixture, Scene, SceneObject, open_box_geoms
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
-from gym_soarm.tasks.base import (
-    GRIPPER_POSITION_FIELD,
-    Evaluation,
-    RewardWeights,
-    Task,
-    TaskSpec,
-    fixture_position_field,
-    object_pose_fields,
-)
+from gym_soarm.tasks.base import Evaluation, RewardWeights, Task, TaskSpec
 from gym_soarm.tasks.cube import CUBE_HALF_M, coloured_cubes, cube_reach
 from gym_soarm.tasks.open_box import OverRimExpert, OverRimStateExpert
 from gym_soarm.tasks.scripted import OneAfterAnother
+from gym_soarm.tasks.state_fields import (
+    GRIPPER_POSITION_FIELD,
+    fixture_position_field,
+    object_pose_fields,
+)
 
 INSTRUCTION = "Put all the cubes in the green box."
 COLOURS: tuple[str, ...] = ("red", "blue", "yellow", "purple")

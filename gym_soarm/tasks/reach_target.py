@@ -28,17 +28,11 @@ from gym_soarm.sim.arrays import Array, SimArrays
 from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
 from gym_soarm.sim.physics import SoArmPhysics
-from gym_soarm.tasks.base import (
-    GRIPPER_POSITION_FIELD,
-    Evaluation,
-    RewardWeights,
-    Task,
-    TaskSpec,
-    fixture_position_field,
-)
+from gym_soarm.tasks.base import Evaluation, RewardWeights, Task, TaskSpec
 from gym_soarm.tasks.rewards import REACH_MARGIN_M, tolerance
 from gym_soarm.tasks.scripted import NoGraspExpert, Phase
 from gym_soarm.tasks.state_expert import Move, StateExpert
+from gym_soarm.tasks.state_fields import GRIPPER_POSITION_FIELD, fixture_position_field
 
 TARGET_RADIUS_M = 0.015
 """The ball is as wide as the cube: smaller, it is a few pixels of a 320 x 240 camera."""

@@ -43,15 +43,7 @@ from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
-from gym_soarm.tasks.base import (
-    GRIPPER_POSITION_FIELD,
-    Evaluation,
-    RewardWeights,
-    Task,
-    TaskSpec,
-    fixture_position_field,
-    object_pose_fields,
-)
+from gym_soarm.tasks.base import Evaluation, RewardWeights, Task, TaskSpec
 from gym_soarm.tasks.cube import CUBE_HALF_M, coloured_cubes
 from gym_soarm.tasks.rewards import (
     PLACE_MARGIN_M,
@@ -62,6 +54,11 @@ from gym_soarm.tasks.rewards import (
 )
 from gym_soarm.tasks.scripted import OneAfterAnother
 from gym_soarm.tasks.state_expert import PlaceStateExpert
+from gym_soarm.tasks.state_fields import (
+    GRIPPER_POSITION_FIELD,
+    fixture_position_field,
+    object_pose_fields,
+)
 
 COLOURS: tuple[str, ...] = ("red", "green", "blue")
 """The cubes' and pads' colours, in sorting order: ``<colour>_cube`` goes on ``<colour>_pad``."""

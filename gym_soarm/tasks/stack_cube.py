@@ -30,18 +30,13 @@ from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.objects import Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
-from gym_soarm.tasks.base import (
-    GRIPPER_POSITION_FIELD,
-    Evaluation,
-    Task,
-    TaskSpec,
-    object_pose_fields,
-)
+from gym_soarm.tasks.base import Evaluation, Task, TaskSpec
 from gym_soarm.tasks.cube import CUBE_HALF_M, CUBE_SIZE_M
 from gym_soarm.tasks.placing import PlacementScoring
 from gym_soarm.tasks.rewards import RESTING_SPEED_M_S
 from gym_soarm.tasks.scripted import PlaceExpert
 from gym_soarm.tasks.state_expert import PlaceStateExpert
+from gym_soarm.tasks.state_fields import GRIPPER_POSITION_FIELD, object_pose_fields
 
 CUBE_MASS_KG = 0.02
 RED_CUBE = SceneObject(

@@ -29,7 +29,8 @@ from gymnasium import spaces
 from gym_soarm import constants
 from gym_soarm.sim.arrays import Array, SimArrays
 from gym_soarm.sim.physics import SoArmPhysics
-from gym_soarm.tasks.base import StateField, Task
+from gym_soarm.tasks.base import Task
+from gym_soarm.tasks.state_fields import StateField
 
 GRIPPER_FIELD = "gripper_pos"
 """The gripper frame's position: already beside the jaws' centre, so no vector to it."""
