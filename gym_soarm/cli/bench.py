@@ -17,7 +17,7 @@ from typing import Any
 
 from gym_soarm.bench import bench, bench_vector
 from gym_soarm.cli.options import add_settings_arguments, settings_given, task_name
-from gym_soarm.cli.programs import program_name
+from gym_soarm.cli.programs import program_parser
 from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.tasks import DEFAULT_TASK
 
@@ -188,13 +188,16 @@ def _add_recording_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+DESCRIPTION = (
+    "Measure env steps/s, make/reset time and memory against MuJoCo's own "
+    "ceiling (bare mj_step, bare mujoco.Renderer) on this machine."
+)
+"""What ``--help`` says the program does."""
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The program's command line."""
-    parser = argparse.ArgumentParser(
-        prog=program_name("bench"),
-        description="Measure env steps/s, make/reset time and memory against MuJoCo's own "
-        "ceiling (bare mj_step, bare mujoco.Renderer) on this machine.",
-    )
+    parser = program_parser("bench", DESCRIPTION)
     _add_measurement_arguments(parser)
     _add_vector_arguments(parser)
     _add_recording_arguments(parser)

@@ -21,7 +21,7 @@ from gym_soarm.cli.options import (
     settings_given,
     task_name,
 )
-from gym_soarm.cli.programs import program_name
+from gym_soarm.cli.programs import program_parser
 from gym_soarm.envs.settings import merge_keywords
 from gym_soarm.tasks import get_task, task_names
 from gym_soarm.tasks.suites import EVAL_SEED
@@ -45,12 +45,15 @@ def env_kwargs(args: argparse.Namespace, base: dict[str, Any], task: str) -> dic
     return merge_keywords(base, task, settings_given(args))
 
 
+DESCRIPTION = (
+    "Score a trained policy (a python -m gym_soarm.train folder) or the "
+    f"scripted expert on the benchmark's protocol: seeds {EVAL_SEED} + k."
+)
+"""What ``--help`` says the program does."""
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog=program_name("evaluate"),
-        description="Score a trained policy (a python -m gym_soarm.train folder) or the "
-        f"scripted expert on the benchmark's protocol: seeds {EVAL_SEED} + k.",
-    )
+    parser = program_parser("evaluate", DESCRIPTION)
     parser.add_argument(
         "--policy", required=True, help="a python -m gym_soarm.train --out folder, or 'expert'"
     )

@@ -24,7 +24,7 @@ from gym_soarm.cli.options import (
     settings_from_args,
     task_selection,
 )
-from gym_soarm.cli.programs import program_name
+from gym_soarm.cli.programs import program_parser
 from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.expert import EXPERT_KINDS, EpisodeResult, evaluate, evaluate_protocol
 from gym_soarm.expert.perturbed import PERTURBATIONS, PerturbedResult, evaluate_perturbed
@@ -64,14 +64,17 @@ def _selection(text: str) -> str:
     return text if text == "all" else task_selection(text)
 
 
+DESCRIPTION = (
+    "Measure the expert's success rate on each task: grid tasks "
+    "over 9 cells x 4 yaws x 3 seeds, the others over seeds 0-99 (or, with --protocol, "
+    f"on the benchmark's seeds {EVAL_SEED} + k)."
+)
+"""What ``--help`` says the program does."""
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The program's command line."""
-    parser = argparse.ArgumentParser(
-        prog=program_name("expert"),
-        description="Measure the expert's success rate on each task: grid tasks "
-        "over 9 cells x 4 yaws x 3 seeds, the others over seeds 0-99 (or, with --protocol, "
-        f"on the benchmark's seeds {EVAL_SEED} + k).",
-    )
+    parser = program_parser("expert", DESCRIPTION)
     parser.add_argument(
         "--task",
         nargs="+",

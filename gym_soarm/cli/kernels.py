@@ -13,17 +13,19 @@ import logging
 from collections.abc import Sequence
 
 from gym_soarm.cli.options import int_at_least, task_name
-from gym_soarm.cli.programs import program_name
+from gym_soarm.cli.programs import program_parser
+
+DESCRIPTION = (
+    "Compile Warp's and MuJoCo Warp's CUDA kernels of the tasks' step for a "
+    "named GPU architecture into a cache folder, without a GPU: each task's scene is "
+    "stepped once on Warp's CPU device, then each module is compiled ahead of time. A GPU "
+    "run with WARP_CACHE_PATH=DIR loads them instead of compiling."
+)
+"""What ``--help`` says the program does."""
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog=program_name("kernels"),
-        description="Compile Warp's and MuJoCo Warp's CUDA kernels of the tasks' step for a "
-        "named GPU architecture into a cache folder, without a GPU: each task's scene is "
-        "stepped once on Warp's CPU device, then each module is compiled ahead of time. A GPU "
-        "run with WARP_CACHE_PATH=DIR loads them instead of compiling.",
-    )
+    parser = program_parser("kernels", DESCRIPTION)
     parser.add_argument("--out", required=True, metavar="DIR", help="the cache folder")
     parser.add_argument(
         "--arch",

@@ -8,12 +8,13 @@ list and argparse's usage code, 2.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import importlib
 import os
 import sys
 from collections.abc import Iterator, Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 PROG = "python -m gym_soarm"
 
@@ -53,6 +54,12 @@ def program_name(name: str) -> str:
     if script == f"gym-soarm-{name}":
         return script
     return f"python -m gym_soarm.{name}"
+
+
+def program_parser(name: str, description: str, **kwargs: Any) -> argparse.ArgumentParser:
+    """The command line parser of program ``name``: its usage line names the program as
+    the user started it (:func:`program_name`); ``kwargs`` go to ``ArgumentParser``."""
+    return argparse.ArgumentParser(prog=program_name(name), description=description, **kwargs)
 
 
 @contextlib.contextmanager

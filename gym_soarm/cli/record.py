@@ -17,7 +17,7 @@ from gym_soarm.cli.options import (
     settings_from_args,
     task_selection,
 )
-from gym_soarm.cli.programs import program_name
+from gym_soarm.cli.programs import program_parser
 from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.record.record import (
     CAMERA_CONFIG_CHOICES,
@@ -122,11 +122,12 @@ def _add_attempt_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+DESCRIPTION = "Record scripted-expert demonstrations of gym_soarm as a LeRobotDataset v3.0."
+"""What ``--help`` says the program does."""
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog=program_name("record"),
-        description="Record scripted-expert demonstrations of gym_soarm as a LeRobotDataset v3.0.",
-    )
+    parser = program_parser("record", DESCRIPTION)
     _add_dataset_arguments(parser)
     add_settings_arguments(
         parser,

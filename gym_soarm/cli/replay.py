@@ -18,16 +18,18 @@ from gym_soarm.cli.options import (
     dataset_scene_keywords,
     settings_except,
 )
-from gym_soarm.cli.programs import program_name
+from gym_soarm.cli.programs import program_parser
 from gym_soarm.real.replay import REPLAY_OVERRIDES, plot_replay, replay
+
+DESCRIPTION = (
+    "Replay a LeRobot SO-101 dataset's actions in the simulation and report, "
+    "per joint, the error between the simulated and the recorded observation.state."
+)
+"""What ``--help`` says the program does."""
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog=program_name("replay"),
-        description="Replay a LeRobot SO-101 dataset's actions in the simulation and report, "
-        "per joint, the error between the simulated and the recorded observation.state.",
-    )
+    parser = program_parser("replay", DESCRIPTION)
     parser.add_argument("--root", required=True, help="the dataset folder (holds meta/info.json)")
     parser.add_argument(
         "--episode",

@@ -18,19 +18,21 @@ from gym_soarm.cli.options import (
     dataset_scene_keywords,
     settings_except,
 )
-from gym_soarm.cli.programs import program_name
+from gym_soarm.cli.programs import program_parser
 from gym_soarm.real.dynamics import write_dynamics
 from gym_soarm.real.sysid import DELAYS, FIT_ITERATIONS, SYSID_SETTINGS, fit_dynamics, plot_fit
 
+DESCRIPTION = (
+    "Replay a LeRobot SO-101 dataset's actions in the simulation and fit, per "
+    "joint, the servo gains (kp, kv) and the joint's damping, armature and friction loss, "
+    "and the control delay, to its recorded observation.state. Writes a "
+    "gym_soarm.dynamics/1 file for dynamics=PATH / --dynamics."
+)
+"""What ``--help`` says the program does."""
+
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog=program_name("sysid"),
-        description="Replay a LeRobot SO-101 dataset's actions in the simulation and fit, per "
-        "joint, the servo gains (kp, kv) and the joint's damping, armature and friction loss, "
-        "and the control delay, to its recorded observation.state. Writes a "
-        "gym_soarm.dynamics/1 file for dynamics=PATH / --dynamics.",
-    )
+    parser = program_parser("sysid", DESCRIPTION)
     parser.add_argument("--root", required=True, help="the dataset folder (holds meta/info.json)")
     parser.add_argument(
         "--episodes",

@@ -21,7 +21,7 @@ from gym_soarm.cli.options import (
     settings_from_args,
     task_name,
 )
-from gym_soarm.cli.programs import program_name
+from gym_soarm.cli.programs import program_parser
 from gym_soarm.data import LeRobotDatasetWriter
 from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.record.record import (
@@ -155,14 +155,20 @@ def _add_driving_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+DESCRIPTION = (
+    "Drive the SO-101's jaw centre in the robot's base frame from the keyboard "
+    "(or a gamepad) in a window that shows the cameras, and record the episodes as a "
+    "LeRobotDataset v3.0 (with --root or --repo-id; without them it only drives). The "
+    "simulation waits for the first key of each episode, then runs in real time (50 Hz, "
+    "or as fast as rendering allows: the default 240x320 images keep it quick)."
+)
+"""What ``--help`` says the program does."""
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog=program_name("teleop"),
-        description="Drive the SO-101's jaw centre in the robot's base frame from the keyboard "
-        "(or a gamepad) in a window that shows the cameras, and record the episodes as a "
-        "LeRobotDataset v3.0 (with --root or --repo-id; without them it only drives). The "
-        "simulation waits for the first key of each episode, then runs in real time (50 Hz, "
-        "or as fast as rendering allows: the default 240x320 images keep it quick).",
+    parser = program_parser(
+        "teleop",
+        DESCRIPTION,
         epilog="keys (with the window focused):\n" + _key_map_text() + "\n\nAn episode ends "
         "when you save it, when the task succeeds, or at --max-steps; a recording saves it "
         "then (--keep success: only if the task succeeded). Each saved episode holds its "

@@ -29,7 +29,7 @@ from gym_soarm.cli.options import (
     settings_given,
     task_name,
 )
-from gym_soarm.cli.programs import program_name
+from gym_soarm.cli.programs import program_parser
 from gym_soarm.envs.settings import EnvSettings
 from gym_soarm.rl.hyperparams import IMITATION, TRAINERS, VEC_ENVS, VECTOR_ENVS
 from gym_soarm.tasks import task_names
@@ -71,14 +71,17 @@ def env_changes(args: argparse.Namespace) -> dict[str, Any]:
     return settings_given(args)
 
 
+DESCRIPTION = (
+    "Train PPO or SAC on a task's state observations with the package's "
+    "recipe, or imitate the task's scripted expert (bc: behaviour cloning with DART "
+    "noise, dagger: DAgger); writes model.zip, settings.json, curve.csv and curve.png "
+    "to --out."
+)
+"""What ``--help`` says the program does."""
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog=program_name("train"),
-        description="Train PPO or SAC on a task's state observations with the package's "
-        "recipe, or imitate the task's scripted expert (bc: behaviour cloning with DART "
-        "noise, dagger: DAgger); writes model.zip, settings.json, curve.csv and curve.png "
-        "to --out.",
-    )
+    parser = program_parser("train", DESCRIPTION)
     parser.add_argument("--algo", required=True, choices=TRAINERS, help="the algorithm")
     parser.add_argument(
         "--task",
