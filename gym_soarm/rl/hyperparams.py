@@ -236,7 +236,7 @@ PIXEL_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "epochs": 30,
                 "episode_weighting": True,
                 "round_learning_rate": None,
-                "rounds": 8,
+                "rounds": 6,
                 "patience": 3,
                 "episodes_per_round": 20,
                 "round_epochs": 20,

@@ -28,15 +28,19 @@ import torch
 import gym_soarm
 from gym_soarm.expert import make_expert
 from gym_soarm.rl.evaluation import TrainedPolicy, make_env, score
+from gym_soarm.rl.hyperparams import pixel_recipe
 from gym_soarm.rl.imitation import train_imitation
 from gym_soarm.rl.pixels import (
     PIXEL_MODEL_FILE,
     FrameStore,
     PixelPolicy,
+    check_pixel_settings,
     command_map,
     proprioception,
     random_shift,
+    store_bound,
 )
+from gym_soarm.tasks import BUILTIN_TASKS, get_task
 from gym_soarm.tasks.scripted import ScriptedExpert
 from gym_soarm.tasks.state_expert import StateExpert
 
@@ -153,6 +157,18 @@ def test_frame_store_keeps_uint8_frames_and_refuses_past_its_bound():
     assert store.proprio.shape[1] == len(proprioception(np.ones(6), np.ones(6), np.ones(6)))
     with pytest.raises(ValueError, match="frame store is full"):
         store.add(obs, np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6), 0, 0)
+
+
+@pytest.mark.parametrize("task", [t for t in BUILTIN_TASKS if get_task(t).max_episode_steps <= 400])
+def test_the_default_pixel_dagger_recipe_fits_its_memory_bound(task):
+    # The recipe a user gets by default must start on every task of up to 400 steps:
+    # every episode at its step limit, front + wrist at 96 x 128, within max_memory_gb.
+    settings = check_pixel_settings("dagger", pixel_recipe("dagger", task))
+    *_, worst, budget = store_bound("dagger", get_task(task), settings)
+    assert 0 < worst <= budget
+    settings["algo"]["demos"] += budget  # one more episode of each step would not fit
+    with pytest.raises(ValueError, match="max_memory_gb"):
+        store_bound("dagger", get_task(task), settings)
 
 
 def test_command_map_gives_the_action_that_holds_the_joints_where_they_are():
