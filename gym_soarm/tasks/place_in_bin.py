@@ -112,12 +112,13 @@ class PlaceInBinTask(PlacementScoring, Task):
     def placed(self, sim: SimArrays) -> tuple[Array, Array]:
         """In the bin: the whole cube inside the bin's inner footprint, its top below the rim."""
         xp = sim.xp
-        offset = sim.object_position(self.cube)[..., :2] - sim.fixture_position(BIN.name)[..., :2]
+        position = sim.object_position(self.cube)
+        offset = position[..., :2] - sim.fixture_position(BIN.name)[..., :2]
         reach_x, reach_y, reach_z = cube_reach(sim, self.cube)
         inside = (xp.abs(offset[..., 0]) + reach_x <= BIN_INNER_HALF_M) & (
             xp.abs(offset[..., 1]) + reach_y <= BIN_INNER_HALF_M
         )
-        top = sim.object_position(self.cube)[..., 2] + reach_z - constants.TABLE_TOP_Z_M
+        top = position[..., 2] + reach_z - constants.TABLE_TOP_Z_M
         return inside & (top < BIN_RIM_Z_M), batch_norm(offset)
 
     def settled(self, sim: SimArrays) -> Array:

@@ -318,8 +318,9 @@ class ScriptedExpert:
     def _choose_grasp_yaw(self, position: np.ndarray) -> float:
         """Of :meth:`_grasp_yaws`, the one the jaws reach with least wrist roll."""
         seed = self._seed_towards(position)
-        best_yaw, best_cost = 0.0, math.inf
-        for yaw in self._grasp_yaws():
+        yaws = self._grasp_yaws()
+        best_yaw, best_cost = yaws[0], math.inf
+        for yaw in yaws:
             q, position_error, rotation_error = self._kinematics.solve(
                 seed, position, downward_rotation(yaw)
             )

@@ -166,7 +166,7 @@ def test_the_default_pixel_dagger_recipe_fits_its_memory_bound(task):
     settings = check_pixel_settings("dagger", pixel_recipe("dagger", task))
     *_, worst, budget = store_bound("dagger", get_task(task), settings)
     assert 0 < worst <= budget
-    settings["algo"]["demos"] += budget  # one more episode of each step would not fit
+    settings["algo"]["demos"] += budget  # more episodes than the bound holds steps: refused
     with pytest.raises(ValueError, match="max_memory_gb"):
         store_bound("dagger", get_task(task), settings)
 
