@@ -10,9 +10,13 @@ and how to fix it. Nothing is built or changed before the checks pass.
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
 import numbers
+import os
 from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -81,6 +85,23 @@ def check_number(name: str, value: Any, minimum: float | None = None, unit: str 
     if not math.isfinite(float(value)) or (minimum is not None and float(value) < minimum):
         raise ValueError(f"{name} must be {what}; got {value!r}.")
     return float(value)
+
+
+def check_positive(name: str, value: Any) -> float:
+    """``value`` as a float > 0 (bools are not numbers here)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not value > 0:
+        raise ValueError(f"{name} must be a number > 0; got {value!r}.")
+    return float(value)
+
+
+def check_dataclass_fields(
+    config: Any, picks: Callable[[str], bool], check: Callable[[str, Any], Any]
+) -> None:
+    """Run ``check(name, value)`` on each field of the dataclass ``config`` whose name
+    ``picks`` chooses (``lambda name: name.endswith("_steps")``), in declaration order."""
+    for field in dataclasses.fields(config):
+        if picks(field.name):
+            check(field.name, getattr(config, field.name))
 
 
 def check_subset(name: str, value: Any, valid: Sequence[str]) -> tuple[str, ...]:
@@ -200,3 +221,30 @@ def check_fields(
     if extra:
         raise refuse(f"{what} has an unknown field {extra[0]!r}; expected {', '.join(fields)}")
     return entry
+
+
+def read_json_file(path: Any, expected: str, refuse: Callable[[str], ValueError]) -> Any:
+    """The content of the JSON file at ``path``.
+
+    Args:
+        path: a ``str`` or ``os.PathLike``.
+        expected: what the argument should be, the start of the type error's message
+            ("calibration must be the path of ...").
+        refuse: makes the error from a problem with the file (missing, unreadable, not
+            JSON), naming the file and the fix.
+
+    Raises:
+        ArgumentTypeError: ``path`` is not a str or path.
+        ValueError: ``refuse``'s, for a missing, unreadable or non-JSON file.
+    """
+    if not isinstance(path, (str, os.PathLike)):
+        raise ArgumentTypeError(f"{expected}; got {path!r} ({type(path).__name__}).")
+    file = Path(path)
+    if not file.is_file():
+        raise refuse("no such file")
+    try:
+        return json.loads(file.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise refuse(f"cannot be read ({exc})") from exc
+    except json.JSONDecodeError as exc:
+        raise refuse(f"is not JSON ({exc})") from exc

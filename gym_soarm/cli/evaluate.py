@@ -15,9 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from gym_soarm.cli.options import (
-    add_settings_arguments,
+    add_override_arguments,
     int_at_least,
-    settings_except,
     settings_given,
     task_name,
 )
@@ -72,13 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--first-seed", type=int, default=EVAL_SEED, help=f"seed of episode 0 (default {EVAL_SEED})"
     )
     parser.add_argument("--json", default=None, metavar="PATH", help="write the result as JSON")
-    add_settings_arguments(
-        parser,
-        exclude=settings_except(*EVALUATE_SETTINGS),
-        defaults=dict.fromkeys(EVALUATE_SETTINGS),
-        description="gym.make keywords over the policy's own environment (see docs/keywords.md)",
-        default_text="default: the policy's own, else gym.make's",
-    )
+    add_override_arguments(parser, EVALUATE_SETTINGS, "the policy", "the policy")
     return parser
 
 

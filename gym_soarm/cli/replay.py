@@ -14,9 +14,7 @@ from pathlib import Path
 
 from gym_soarm.cli.options import (
     add_dataset_scene_arguments,
-    add_settings_arguments,
     dataset_scene_keywords,
-    settings_except,
 )
 from gym_soarm.cli.programs import program_parser
 from gym_soarm.real.replay import REPLAY_OVERRIDES, plot_replay, replay
@@ -30,7 +28,7 @@ DESCRIPTION = (
 
 def build_parser() -> argparse.ArgumentParser:
     parser = program_parser("replay", DESCRIPTION)
-    parser.add_argument("--root", required=True, help="the dataset folder (holds meta/info.json)")
+    add_dataset_scene_arguments(parser, REPLAY_OVERRIDES)
     parser.add_argument(
         "--episode",
         type=int,
@@ -38,14 +36,6 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="K",
         help="an episode index to replay; repeat for several (default: every episode)",
-    )
-    add_dataset_scene_arguments(parser)
-    add_settings_arguments(
-        parser,
-        exclude=settings_except(*REPLAY_OVERRIDES),
-        defaults=dict.fromkeys(REPLAY_OVERRIDES),
-        description="gym.make keywords over a gym_soarm recording's own (see docs/keywords.md)",
-        default_text="default: the recording's own, else gym.make's",
     )
     parser.add_argument("--json", default=None, metavar="PATH", help="write the figures as JSON")
     parser.add_argument(

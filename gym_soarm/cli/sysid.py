@@ -14,9 +14,7 @@ from pathlib import Path
 from gym_soarm import constants
 from gym_soarm.cli.options import (
     add_dataset_scene_arguments,
-    add_settings_arguments,
     dataset_scene_keywords,
-    settings_except,
 )
 from gym_soarm.cli.programs import program_parser
 from gym_soarm.real.dynamics import write_dynamics
@@ -33,7 +31,7 @@ DESCRIPTION = (
 
 def build_parser() -> argparse.ArgumentParser:
     parser = program_parser("sysid", DESCRIPTION)
-    parser.add_argument("--root", required=True, help="the dataset folder (holds meta/info.json)")
+    add_dataset_scene_arguments(parser, SYSID_SETTINGS)
     parser.add_argument(
         "--episodes",
         type=int,
@@ -50,14 +48,6 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="PATH.png",
         help="draw recorded vs simulated joints, before and after the fit (needs matplotlib)",
-    )
-    add_dataset_scene_arguments(parser)
-    add_settings_arguments(
-        parser,
-        exclude=settings_except(*SYSID_SETTINGS),
-        defaults=dict.fromkeys(SYSID_SETTINGS),
-        description="gym.make keywords over a gym_soarm recording's own (see docs/keywords.md)",
-        default_text="default: the recording's own, else gym.make's",
     )
     parser.add_argument(
         "--delays",

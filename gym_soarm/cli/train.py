@@ -192,16 +192,7 @@ def _run_imitation(args: argparse.Namespace) -> Any:
             )
     from gym_soarm.rl.imitation import train_imitation
 
-    return train_imitation(
-        args.algo,
-        args.task,
-        args.out,
-        seed=args.seed,
-        eval_episodes=args.eval_episodes,
-        hyperparams=dict(args.hyperparams),
-        env=env_changes(args),
-        device=args.device,
-    )
+    return train_imitation(args.algo, args.task, args.out, **_run_keywords(args))
 
 
 def _run_rl(args: argparse.Namespace) -> Any:
@@ -221,18 +212,25 @@ def _run_rl(args: argparse.Namespace) -> Any:
         args.algo,
         args.task,
         args.out,
-        seed=args.seed,
         steps=args.steps,
         eval_every=args.eval_every,
-        eval_episodes=args.eval_episodes,
         progress_bar=not args.no_progress,
-        hyperparams=dict(args.hyperparams),
         vec_env=args.vec_env,
         init=args.init,
-        env=env_changes(args),
         vector_env=args.vector_env,
-        device=args.device,
+        **_run_keywords(args),
     )
+
+
+def _run_keywords(args: argparse.Namespace) -> dict[str, Any]:
+    """What every trainer takes from the flags: seed, evaluation, recipe, env and device."""
+    return {
+        "seed": args.seed,
+        "eval_episodes": args.eval_episodes,
+        "hyperparams": dict(args.hyperparams),
+        "env": env_changes(args),
+        "device": args.device,
+    }
 
 
 def main(argv: Sequence[str] | None = None) -> int:

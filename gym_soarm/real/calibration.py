@@ -74,12 +74,10 @@ Only numpy and the standard library are used here: no LeRobot, no torch.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -98,7 +96,7 @@ from gym_soarm.real.unit_maps import (
     check_wrist_roll_offset,
     wrap_rad,
 )
-from gym_soarm.validation import ArgumentTypeError, check_fields
+from gym_soarm.validation import check_fields, read_json_file
 
 MAX_TICKS = 4095
 """The highest reading of the STS3215's 12-bit encoder (readings are 0 to 4095)."""
@@ -213,20 +211,12 @@ def load_calibration(path: str | os.PathLike[str]) -> Calibration:
             field, has an unknown one, or a value is not an integer or out of range;
             the message names the file, the motor and the field.
     """
-    if not isinstance(path, (str, os.PathLike)):
-        raise ArgumentTypeError(
-            f"calibration must be the path of a LeRobot calibration JSON file (str or "
-            f"os.PathLike) or None; got {path!r} ({type(path).__name__})."
-        )
-    file = Path(path)
-    if not file.is_file():
-        raise _refuse(path, "no such file")
-    try:
-        content = json.loads(file.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise _refuse(path, f"cannot be read ({exc})") from exc
-    except json.JSONDecodeError as exc:
-        raise _refuse(path, f"is not JSON ({exc})") from exc
+    content = read_json_file(
+        path,
+        "calibration must be the path of a LeRobot calibration JSON file (str or "
+        "os.PathLike) or None",
+        lambda problem: _refuse(path, problem),
+    )
     if not isinstance(content, dict):
         raise _refuse(path, f"holds a {type(content).__name__}, not an object of motors")
     names = constants.JOINT_NAMES

@@ -61,7 +61,7 @@ import numpy as np
 
 from gym_soarm import constants
 from gym_soarm.sim.randomization import arm_indices, set_servo_gains
-from gym_soarm.validation import ArgumentTypeError, check_fields
+from gym_soarm.validation import check_fields, read_json_file
 
 FORMAT = "gym_soarm.dynamics/1"
 """The ``format`` string of a dynamics file, as :func:`write_dynamics` writes it."""
@@ -212,20 +212,12 @@ def load_dynamics(path: str | os.PathLike[str]) -> Dynamics:
         ValueError: the file is missing, unreadable or not JSON, or its content is bad
             (see :func:`check_dynamics`); the message names the file and the field.
     """
-    if not isinstance(path, (str, os.PathLike)):
-        raise ArgumentTypeError(
-            f"dynamics must be the path of a {FORMAT} JSON file (str or os.PathLike) or "
-            f"None; got {path!r} ({type(path).__name__}). Fit one with python -m gym_soarm.sysid."
-        )
-    file = Path(path)
-    if not file.is_file():
-        raise _refuse(os.fspath(path), "no such file")
-    try:
-        content = json.loads(file.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise _refuse(os.fspath(path), f"cannot be read ({exc})") from exc
-    except json.JSONDecodeError as exc:
-        raise _refuse(os.fspath(path), f"is not JSON ({exc})") from exc
+    content = read_json_file(
+        path,
+        f"dynamics must be the path of a {FORMAT} JSON file (str or os.PathLike) or None "
+        "(fit one with python -m gym_soarm.sysid)",
+        lambda problem: _refuse(os.fspath(path), problem),
+    )
     dynamics = check_dynamics(content, os.fspath(path))
     return Dynamics(dynamics.joints, dynamics.control_delay_steps, dynamics.fit, os.fspath(path))
 

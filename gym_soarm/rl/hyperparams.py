@@ -78,6 +78,24 @@ _STATE_ENV: dict[str, Any] = {
     "control_mode": "joint_delta",
 }
 
+_STATE_IMITATION_RUN: dict[str, Any] = {
+    "env": _STATE_ENV,
+    "n_envs": 4,
+    "torch_threads": 1,
+    "normalize": True,
+    "eval_episodes": 20,
+}
+"""The run settings the state BC and DAgger recipes share."""
+
+_STATE_STUDENT: dict[str, Any] = {
+    "dart_std": 0.05,
+    "epochs": 200,
+    "batch_size": 256,
+    "learning_rate": 1e-3,
+    "policy_kwargs": {"net_arch": [256, 256]},
+}
+"""The state BC and DAgger students' shared network and fit."""
+
 HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
     "ppo": {
         "default": {
@@ -142,36 +160,17 @@ HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
     },
     "bc": {
         "default": {
-            "env": _STATE_ENV,
-            "n_envs": 4,
-            "torch_threads": 1,
-            "normalize": True,
-            "eval_episodes": 20,
-            "algo": {
-                "demos": 200,
-                "dart_std": 0.05,
-                "epochs": 200,
-                "batch_size": 256,
-                "learning_rate": 1e-3,
-                "policy_kwargs": {"net_arch": [256, 256]},
-            },
+            **_STATE_IMITATION_RUN,
+            "algo": {"demos": 200, **_STATE_STUDENT},
         },
         REACH: {"algo": {"dart_std": 0.15}},
     },
     "dagger": {
         "default": {
-            "env": _STATE_ENV,
-            "n_envs": 4,
-            "torch_threads": 1,
-            "normalize": True,
-            "eval_episodes": 20,
+            **_STATE_IMITATION_RUN,
             "algo": {
                 "demos": 50,
-                "dart_std": 0.05,
-                "epochs": 200,
-                "batch_size": 256,
-                "learning_rate": 1e-3,
-                "policy_kwargs": {"net_arch": [256, 256]},
+                **_STATE_STUDENT,
                 "rounds": 5,
                 "episodes_per_round": 20,
                 "round_epochs": 50,
@@ -268,11 +267,17 @@ def pixel_recipe(algo: str, task: str) -> dict[str, Any]:
     Raises:
         ValueError: ``algo`` is not one of :data:`IMITATION`.
     """
-    if algo not in PIXEL_HYPERPARAMS:
-        raise ValueError(
-            f"a pixel student trains with {', '.join(IMITATION)}; got {algo!r}. Pass --algo bc."
-        )
-    return _merged(PIXEL_HYPERPARAMS[algo], task)
+    refusal = f"a pixel student trains with {', '.join(IMITATION)}; got {algo!r}. Pass --algo bc."
+    return _merged(_algo_table(PIXEL_HYPERPARAMS, algo, refusal), task)
+
+
+def _algo_table(
+    tables: dict[str, dict[str, dict[str, Any]]], algo: str, refusal: str
+) -> dict[str, dict[str, Any]]:
+    """``algo``'s table of recipes; a ValueError saying ``refusal`` when there is none."""
+    if algo not in tables:
+        raise ValueError(refusal)
+    return tables[algo]
 
 
 def _merged(table: dict[str, dict[str, Any]], task: str) -> dict[str, Any]:
@@ -312,11 +317,8 @@ def recipe(algo: str, task: str) -> dict[str, Any]:
     Raises:
         ValueError: ``algo`` is not one of :data:`TRAINERS`.
     """
-    if algo not in HYPERPARAMS:
-        raise ValueError(
-            f"algo must be one of {', '.join(TRAINERS)}; got {algo!r}. Pass e.g. --algo ppo."
-        )
-    return _merged(HYPERPARAMS[algo], task)
+    refusal = f"algo must be one of {', '.join(TRAINERS)}; got {algo!r}. Pass e.g. --algo ppo."
+    return _merged(_algo_table(HYPERPARAMS, algo, refusal), task)
 
 
 VECTOR_ENVS: tuple[str, ...] = ("batched", "processes", "warp")

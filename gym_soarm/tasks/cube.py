@@ -8,8 +8,6 @@ grid cells with one of four yaws (reset options ``cube_grid_position`` and
 from __future__ import annotations
 
 import dataclasses
-import math
-import numbers
 from collections.abc import Mapping, Sequence
 from types import MappingProxyType
 from typing import Any, ClassVar
@@ -23,7 +21,7 @@ from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import Evaluation, Task
 from gym_soarm.tasks.state_fields import GRIPPER_POSITION_FIELD, object_pose_fields
-from gym_soarm.validation import ArgumentTypeError
+from gym_soarm.validation import check_int, check_number
 
 CUBE_SIZE_M = 0.03
 CUBE_HALF_M = CUBE_SIZE_M / 2
@@ -77,29 +75,12 @@ def validate_grid_options(options: Mapping[str, Any]) -> dict[str, Any]:
     """Check ``cube_grid_position`` (int 0-8 or None) and ``cube_rotation_deg`` (finite or None)."""
     cell = options.get("cube_grid_position")
     if cell is not None:
-        if isinstance(cell, (bool, np.bool_)) or not isinstance(cell, numbers.Integral):
-            raise ArgumentTypeError(
-                "cube_grid_position must be an int from 0 to 8 or None (random cell); "
-                f"got {cell!r} of type {type(cell).__name__}."
-            )
-        if not 0 <= int(cell) < placement.NUM_GRID_CELLS:
-            raise ValueError(
-                f"cube_grid_position must be from 0 to {placement.NUM_GRID_CELLS - 1} or None; got {cell!r}."
-            )
-        cell = int(cell)
+        last = placement.NUM_GRID_CELLS - 1
+        cell = check_int("cube_grid_position (None: a random cell)", cell, 0, last)
     yaw = options.get("cube_rotation_deg")
     if yaw is not None:
-        if isinstance(yaw, (bool, np.bool_)) or not isinstance(yaw, numbers.Real):
-            raise ArgumentTypeError(
-                "cube_rotation_deg must be a finite number of degrees or None (random pick from "
-                f"{placement.GRID_YAWS_DEG}); got {yaw!r} of type {type(yaw).__name__}. Pass e.g. 45.0."
-            )
-        if not math.isfinite(float(yaw)):
-            raise ValueError(
-                f"cube_rotation_deg must be a finite number of degrees; got {yaw!r}. Pass "
-                "e.g. 45.0, or None for a random pick."
-            )
-        yaw = float(yaw)
+        random_pick = f"None: a random pick from {placement.GRID_YAWS_DEG}"
+        yaw = check_number(f"cube_rotation_deg ({random_pick})", yaw, unit="degrees")
     return {"cube_grid_position": cell, "cube_rotation_deg": yaw}
 
 

@@ -24,6 +24,7 @@ from gym_soarm.envs.control import ControlMode
 from gym_soarm.sim.kinematics import ArmKinematics, downward_rotation
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks.grasp_figures import GraspFigures
+from gym_soarm.validation import check_dataclass_fields, check_int
 
 _QUARTER_TURN_RAD = math.pi / 2
 
@@ -53,18 +54,12 @@ class ExpertConfig(GraspFigures):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for field in dataclasses.fields(self):
-            value = getattr(self, field.name)
-            if field.name.endswith("_steps") and (
-                isinstance(value, bool) or not isinstance(value, int) or value < 1
-            ):
-                raise ValueError(
-                    f"{field.name} must be an int >= 1 (control steps); got {value!r}."
-                )
-        if isinstance(self.max_regrasps, bool) or not isinstance(self.max_regrasps, int):
-            raise ValueError(f"max_regrasps must be an int >= 0; got {self.max_regrasps!r}.")
-        if self.max_regrasps < 0:
-            raise ValueError(f"max_regrasps must be an int >= 0; got {self.max_regrasps!r}.")
+        check_dataclass_fields(
+            self,
+            lambda name: name.endswith("_steps"),
+            lambda name, value: check_int(name, value, 1),
+        )
+        check_int("max_regrasps", self.max_regrasps, 0)
         if not self.approach_speed_rad_per_step > 0.0:
             raise ValueError(
                 "approach_speed_rad_per_step must be > 0; "

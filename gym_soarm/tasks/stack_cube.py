@@ -27,11 +27,11 @@ import numpy as np
 from gym_soarm import constants
 from gym_soarm.sim.arrays import Array, SimArrays
 from gym_soarm.sim.arrays import norm as batch_norm
-from gym_soarm.sim.objects import Scene, SceneObject
+from gym_soarm.sim.objects import Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
 from gym_soarm.tasks.base import Evaluation, Task, TaskSpec
-from gym_soarm.tasks.cube import CUBE_HALF_M, CUBE_SIZE_M
+from gym_soarm.tasks.cube import CUBE_HALF_M, CUBE_SIZE_M, coloured_cubes
 from gym_soarm.tasks.placing import PlacementScoring
 from gym_soarm.tasks.rewards import RESTING_SPEED_M_S
 from gym_soarm.tasks.scripted import PlaceExpert
@@ -39,24 +39,8 @@ from gym_soarm.tasks.state_expert import PlaceStateExpert
 from gym_soarm.tasks.state_fields import GRIPPER_POSITION_FIELD, object_pose_fields
 
 CUBE_MASS_KG = 0.02
-RED_CUBE = SceneObject(
-    name="red_cube",
-    shape="box",
-    size_m=(CUBE_HALF_M, CUBE_HALF_M, CUBE_HALF_M),
-    colour="red",
-    mass_kg=CUBE_MASS_KG,
-    position_m=(-0.05, 0.33),
-)
-"""The cube to stack: 3 cm, 20 g, red."""
-BLUE_CUBE = SceneObject(
-    name="blue_cube",
-    shape="box",
-    size_m=(CUBE_HALF_M, CUBE_HALF_M, CUBE_HALF_M),
-    colour="blue",
-    mass_kg=CUBE_MASS_KG,
-    position_m=(0.05, 0.33),
-)
-"""The cube to stack on: 3 cm, 20 g, blue."""
+RED_CUBE, BLUE_CUBE = coloured_cubes(("red", "blue"), -0.05, 0.10, 0.33)
+"""The cube to stack (red) and the one to stack it on (blue): 3 cm, 20 g each."""
 
 START_REGION_M: tuple[tuple[float, float], tuple[float, float]] = ((-0.11, 0.11), (0.27, 0.40))
 """Where the cubes' centres start: ((x_min, x_max), (y_min, y_max)), well within reach."""

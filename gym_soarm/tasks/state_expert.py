@@ -37,6 +37,7 @@ from gym_soarm.sim.kinematics import ArmKinematics, JawPose, downward_rotation
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.sim.timing import DEFAULT_CONTROL_HZ
 from gym_soarm.tasks.grasp_figures import GraspFigures
+from gym_soarm.validation import check_dataclass_fields, check_positive
 
 _QUARTER_TURN_RAD = math.pi / 2
 _N_ARM = len(constants.ARM_JOINT_NAMES)
@@ -76,12 +77,8 @@ class StateExpertConfig(GraspFigures):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for field in dataclasses.fields(self):
-            value = getattr(self, field.name)
-            if field.name.endswith(("_speed_rad", "_speed_m", "_accel_rad")) and not (
-                isinstance(value, float | int) and value > 0
-            ):
-                raise ValueError(f"{field.name} must be a number > 0; got {value!r}.")
+        speeds = ("_speed_rad", "_speed_m", "_accel_rad")
+        check_dataclass_fields(self, lambda name: name.endswith(speeds), check_positive)
 
     def at_rate(self, control_hz: float) -> StateExpertConfig:
         """The same motion in time at ``control_hz``: speeds a step scaled by 50 / hz,

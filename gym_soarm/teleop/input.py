@@ -20,7 +20,7 @@ import numpy as np
 
 from gym_soarm import constants
 from gym_soarm.envs.control import EE_ANGLE_DELTA_LIMIT_RAD, EE_DELTA_LIMIT_M
-from gym_soarm.validation import check_number
+from gym_soarm.validation import check_dataclass_fields, check_int, check_number
 
 MOTION_AXES: tuple[str, ...] = ("x", "y", "z", "pitch", "roll")
 """The five motion axes: the jaw centre's base-frame x (forward), y (left), z (up), and
@@ -187,11 +187,9 @@ class GamepadLayout:
     dead_zone: float = 0.15
 
     def __post_init__(self) -> None:
-        for field in dataclasses.fields(self):
-            if field.name != "dead_zone":
-                value = getattr(self, field.name)
-                if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-                    raise ValueError(f"{field.name} must be an int >= 0; got {value!r}.")
+        check_dataclass_fields(
+            self, lambda name: name != "dead_zone", lambda name, value: check_int(name, value, 0)
+        )
         zone = check_number("dead_zone", self.dead_zone, 0.0)
         if zone >= 1.0:
             raise ValueError(f"dead_zone must be >= 0 and < 1; got {self.dead_zone!r}.")

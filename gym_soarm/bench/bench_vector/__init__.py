@@ -106,22 +106,15 @@ def make_vector(
     Raises:
         ValueError: an unknown ``mode``.
     """
-    if mode == "batched":
+    if mode in ("batched", "processes"):
+        # The batched env's workers are threads; the process env's, processes.
+        workers = "num_threads" if mode == "batched" else "num_processes"
         return gym.make_vec(
             env_id,
             num_envs=num_envs,
             vectorization_mode="vector_entry_point",
-            vector_env="batched",
-            num_threads=num_processes,
-            **kwargs,
-        )
-    if mode == "processes":
-        return gym.make_vec(
-            env_id,
-            num_envs=num_envs,
-            vectorization_mode="vector_entry_point",
-            vector_env="processes",
-            num_processes=num_processes,
+            vector_env=mode,
+            **{workers: num_processes},
             **kwargs,
         )
     if mode == "async":
