@@ -79,8 +79,11 @@ def validate_grid_options(options: Mapping[str, Any]) -> dict[str, Any]:
         cell = check_int("cube_grid_position (None: a random cell)", cell, 0, last)
     yaw = options.get("cube_rotation_deg")
     if yaw is not None:
-        random_pick = f"None: a random pick from {placement.GRID_YAWS_DEG}"
-        yaw = check_number(f"cube_rotation_deg ({random_pick})", yaw, unit="degrees")
+        try:
+            yaw = check_number("cube_rotation_deg", yaw, unit="degrees")
+        except ValueError as exc:  # the same error, with the fix
+            fix = f"Pass e.g. 45.0, or None for a random pick from {placement.GRID_YAWS_DEG}."
+            raise type(exc)(f"{exc} {fix}") from None
     return {"cube_grid_position": cell, "cube_rotation_deg": yaw}
 
 
