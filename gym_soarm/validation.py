@@ -88,8 +88,12 @@ def check_number(name: str, value: Any, minimum: float | None = None, unit: str 
 
 
 def check_positive(name: str, value: Any) -> float:
-    """``value`` as a float > 0 (bools are not numbers here)."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not value > 0:
+    """``value`` as a float > 0 (bools are not numbers here; inf is allowed)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ArgumentTypeError(
+            f"{name} must be a number > 0; got {value!r} ({type(value).__name__})."
+        )
+    if not value > 0:
         raise ValueError(f"{name} must be a number > 0; got {value!r}.")
     return float(value)
 

@@ -38,7 +38,6 @@ from gym_soarm.tasks.scripted import PlaceExpert
 from gym_soarm.tasks.state_expert import PlaceStateExpert
 from gym_soarm.tasks.state_fields import GRIPPER_POSITION_FIELD, object_pose_fields
 
-CUBE_MASS_KG = 0.02
 RED_CUBE, BLUE_CUBE = coloured_cubes(("red", "blue"), -0.05, 0.10, 0.33)
 """The cube to stack (red) and the one to stack it on (blue): 3 cm, 20 g each."""
 
