@@ -63,27 +63,36 @@ def check_bool(name: str, value: Any) -> bool:
     return bool(value)
 
 
-def check_int(name: str, value: Any, minimum: int, maximum: int | None = None) -> int:
-    """``value`` as an int within [minimum, maximum] (bools are not ints here)."""
+def check_int(
+    name: str, value: Any, minimum: int, maximum: int | None = None, *, fix: str = ""
+) -> int:
+    """``value`` as an int within [minimum, maximum] (bools are not ints here); ``fix``
+    ends the message ("Pass None for a random cell.")."""
     span = f"from {minimum} to {maximum}" if maximum is not None else f">= {minimum}"
+    fix = f" {fix}" if fix else ""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         raise ArgumentTypeError(
-            f"{name} must be an int {span}; got {value!r} ({type(value).__name__})."
+            f"{name} must be an int {span}; got {value!r} ({type(value).__name__}).{fix}"
         )
     if int(value) < minimum or (maximum is not None and int(value) > maximum):
-        raise ValueError(f"{name} must be an int {span}; got {value!r}.")
+        raise ValueError(f"{name} must be an int {span}; got {value!r}.{fix}")
     return int(value)
 
 
-def check_number(name: str, value: Any, minimum: float | None = None, unit: str = "") -> float:
-    """``value`` as a finite float (>= minimum when given)."""
+def check_number(
+    name: str, value: Any, minimum: float | None = None, unit: str = "", *, fix: str = ""
+) -> float:
+    """``value`` as a finite float (>= minimum when given); ``fix`` ends the message."""
     what = f"a finite number{' of ' + unit if unit else ''}"
     if minimum is not None:
         what += f" >= {minimum:g}"
+    fix = f" {fix}" if fix else ""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ArgumentTypeError(f"{name} must be {what}; got {value!r} ({type(value).__name__}).")
+        raise ArgumentTypeError(
+            f"{name} must be {what}; got {value!r} ({type(value).__name__}).{fix}"
+        )
     if not math.isfinite(float(value)) or (minimum is not None and float(value) < minimum):
-        raise ValueError(f"{name} must be {what}; got {value!r}.")
+        raise ValueError(f"{name} must be {what}; got {value!r}.{fix}")
     return float(value)
 
 

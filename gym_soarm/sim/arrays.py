@@ -30,6 +30,7 @@ from array_api_compat import array_namespace
 from array_api_compat import device as array_device
 
 from gym_soarm import constants
+from gym_soarm.sim.objects import not_in_scene
 from gym_soarm.sim.scene import contact_sensor_name
 
 if TYPE_CHECKING:
@@ -325,9 +326,7 @@ class SimArrays:
     def _object(self, name: str) -> _Object:
         item = self.index.objects.get(name)
         if item is None:
-            raise ValueError(
-                f"this scene has no object {name!r}; its objects are {list(self.index.objects)}."
-            )
+            raise not_in_scene("object", name, self.index.objects)
         return item
 
     def object_position(self, name: str) -> Array:
@@ -384,10 +383,7 @@ class SimArrays:
         """``(n, 3)``: fixture ``name``'s site (the point a task aims at, m)."""
         site = self.index.fixture_sites.get(name)
         if site is None:
-            raise ValueError(
-                f"this scene has no fixture {name!r}; its fixtures are "
-                f"{list(self.index.fixture_sites)}."
-            )
+            raise not_in_scene("fixture", name, self.index.fixture_sites)
         return self.site_xpos[..., site, :]
 
     def fixture_joint_position(self, name: str) -> Array:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 COLOURS: dict[str, tuple[float, float, float, float]] = {
     "blue": (0.1, 0.25, 0.85, 1.0),
@@ -74,6 +74,12 @@ def _vector(name: str, value: Sequence[float], n: int = 3) -> tuple[float, ...]:
 def half_height(shape: str, size: Sequence[float]) -> float:
     """Height (m) of a shape's centre above its base when it stands upright."""
     return size[0] if shape == "sphere" else size[1] if shape == "cylinder" else size[2]
+
+
+def not_in_scene(kind: str, name: str, known: Iterable[str]) -> ValueError:
+    """The error for a scene that has no ``kind`` (``"object"``, ``"fixture"``) called
+    ``name``, listing the ``known`` names."""
+    return ValueError(f"this scene has no {kind} {name!r}; its {kind}s are {list(known)}.")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -265,9 +271,7 @@ class Scene:
         for item in self.objects:
             if item.name == name:
                 return item
-        raise ValueError(
-            f"this scene has no object {name!r}; its objects are {[o.name for o in self.objects]}."
-        )
+        raise not_in_scene("object", name, (o.name for o in self.objects))
 
 
 EMPTY_SCENE = Scene()

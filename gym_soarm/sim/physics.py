@@ -13,7 +13,6 @@ import dataclasses
 import logging
 import math
 from collections.abc import Sequence
-from typing import Any
 
 import mujoco
 import numpy as np
@@ -56,15 +55,6 @@ class _FixtureIndex:
     geoms: frozenset[int]
     joint: int
     qpos_adr: int
-
-
-def _named(indices: dict[str, Any], kind: str, name: str) -> Any:
-    """The index of the scene's ``kind`` (object or fixture) ``name``; a ValueError naming
-    the scene's others when it has none."""
-    index = indices.get(name)
-    if index is None:
-        raise ValueError(f"this scene has no {kind} {name!r}; its {kind}s are {list(indices)}.")
-    return index
 
 
 class SoArmPhysics(dm_mujoco.Physics):
@@ -341,10 +331,16 @@ class SoArmPhysics(dm_mujoco.Physics):
         return self._sensordata[self._touch_adr]
 
     def _object(self, name: str) -> _ObjectIndex:
-        return _named(self._objects, "object", name)
+        index = self._objects.get(name)
+        if index is None:
+            raise objects.not_in_scene("object", name, self._objects)
+        return index
 
     def _fixture(self, name: str) -> _FixtureIndex:
-        return _named(self._fixtures, "fixture", name)
+        index = self._fixtures.get(name)
+        if index is None:
+            raise objects.not_in_scene("fixture", name, self._fixtures)
+        return index
 
     def jaw_contacts(self, name: str) -> tuple[bool, bool]:
         """Whether the fixed and the moving jaw pad each touch object ``name``."""

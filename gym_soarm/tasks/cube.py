@@ -76,14 +76,11 @@ def validate_grid_options(options: Mapping[str, Any]) -> dict[str, Any]:
     cell = options.get("cube_grid_position")
     if cell is not None:
         last = placement.NUM_GRID_CELLS - 1
-        cell = check_int("cube_grid_position (None: a random cell)", cell, 0, last)
+        cell = check_int("cube_grid_position", cell, 0, last, fix="Pass None for a random cell.")
     yaw = options.get("cube_rotation_deg")
     if yaw is not None:
-        try:
-            yaw = check_number("cube_rotation_deg", yaw, unit="degrees")
-        except ValueError as exc:  # the same error, with the fix
-            fix = f"Pass e.g. 45.0, or None for a random pick from {placement.GRID_YAWS_DEG}."
-            raise type(exc)(f"{exc} {fix}") from None
+        fix = f"Pass e.g. 45.0, or None for a random pick from {placement.GRID_YAWS_DEG}."
+        yaw = check_number("cube_rotation_deg", yaw, unit="degrees", fix=fix)
     return {"cube_grid_position": cell, "cube_rotation_deg": yaw}
 
 
