@@ -66,21 +66,22 @@ class _Scalars:
     float64 = np.float64
     int64 = np.int64
 
+    # The type checks are written out: these run a dozen times in one environment's step.
     @staticmethod
     def where(condition: Any, x1: Any, x2: Any) -> Any:
-        if _is_array(condition):
+        if type(condition) is np.ndarray and condition.ndim:
             return np.where(condition, x1, x2)
         return x1 if condition else x2
 
     @staticmethod
     def maximum(x1: Any, x2: Any) -> Any:
-        if _is_array(x1) or _is_array(x2):
+        if (type(x1) is np.ndarray and x1.ndim) or (type(x2) is np.ndarray and x2.ndim):
             return np.maximum(x1, x2)
         return np.float64(x2) if x2 > x1 else np.float64(x1)
 
     @staticmethod
     def minimum(x1: Any, x2: Any) -> Any:
-        if _is_array(x1) or _is_array(x2):
+        if (type(x1) is np.ndarray and x1.ndim) or (type(x2) is np.ndarray and x2.ndim):
             return np.minimum(x1, x2)
         return np.float64(x2) if x2 < x1 else np.float64(x1)
 
@@ -109,7 +110,15 @@ class _Scalars:
     def astype(x: Any, dtype: Any) -> Any:
         if _is_array(x):
             return x.astype(dtype)
-        return np.dtype(dtype).type(x)
+        scalar = _SCALAR_TYPES.get(dtype)  # a dtype or a scalar type: its scalar type
+        return (np.dtype(dtype).type if scalar is None else scalar)(x)
+
+
+_SCALAR_TYPES: dict[Any, Any] = {
+    key: kind
+    for kind in (np.float32, np.float64, np.int64, np.bool_)
+    for key in (kind, np.dtype(kind))
+}
 
 
 SCALARS = _Scalars()
@@ -403,6 +412,8 @@ class SimArrays:
                 "jaw pads against objects and fixture parts, and objects against the table, "
                 "each other and fixtures."
             )
+        if self.xp is SCALARS:  # one environment: a plain index, the same NumPy bool
+            return self.sensordata[adr] > 0
         return self.sensordata[..., adr] > 0
 
     def jaw_contacts(self, name: str) -> tuple[Array, Array]:
@@ -450,6 +461,30 @@ def norm(vectors: Array) -> Array:
     return namespace(vectors).sqrt((vectors * vectors).sum(-1))
 
 
+def distance(points: Array, others: Array) -> Array:
+    """The Euclidean distance over the last axis: ``norm(points - others)``.
+
+    Two single points (one environment's) are subtracted and summed in Python floats, in
+    NumPy's order: the same result without NumPy's per-call cost.
+    """
+    if (
+        type(points) is np.ndarray
+        and type(others) is np.ndarray
+        and points.ndim == 1 == others.ndim
+    ):
+        total = 0.0
+        for a, b in zip(points.tolist(), others.tolist(), strict=True):
+            offset = a - b
+            total += offset * offset
+        return np.float64(math.sqrt(total))
+    return norm(points - others)
+
+
+def xy_distance(points: Array, others: Array) -> Array:
+    """The horizontal distance (x and y) of ``points`` from ``others``, ``(..., 3)`` each."""
+    return distance(points[..., :2], others[..., :2])
+
+
 def item(value: Any) -> Any:
     """One environment's unbatched value as its info gives it: a Python bool, int or
     float, a fresh array, or the value itself (a colour, a cell or None)."""
@@ -480,10 +515,12 @@ __all__ = [
     "SCALARS",
     "SimArrays",
     "SimIndex",
+    "distance",
     "in_namespace",
     "item",
     "namespace",
     "norm",
     "per_env",
     "to_numpy",
+    "xy_distance",
 ]

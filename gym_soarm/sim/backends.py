@@ -123,6 +123,8 @@ class MjDataBackend:
     def __init__(self, physics: SoArmPhysics) -> None:
         self.physics = physics
         self.index = physics.sim_index
+        self._sim: SimArrays | None = None
+        self._sim_of: tuple[Any, Any] = (None, None)
 
     def set_targets(self, ids: np.ndarray | None, targets: np.ndarray) -> None:
         self.physics.set_joint_targets(targets)
@@ -135,7 +137,16 @@ class MjDataBackend:
         return _SOUND
 
     def arrays(self, episode: dict[str, Any]) -> SimArrays:
-        return SimArrays.of_physics(self.physics, episode)
+        # The arrays are live views: made once for these episode values and this MjData
+        # (a snapshot's restore brings new episode values), forgotten between reads.
+        views = self.physics.array_views
+        made_of = self._sim_of
+        if self._sim is None or made_of[0] is not episode or made_of[1] is not views:
+            self._sim = SimArrays.of_physics(self.physics, episode)
+            self._sim_of = (episode, views)
+        else:
+            self._sim.clear()
+        return self._sim
 
     def overflowed(self) -> None:
         """None: MuJoCo grows its buffers (and warns)."""

@@ -13,8 +13,7 @@ from typing import ClassVar
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.sim.arrays import Array, SimArrays
-from gym_soarm.sim.arrays import norm as batch_norm
+from gym_soarm.sim.arrays import Array, SimArrays, xy_distance
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
 from gym_soarm.tasks.base import TaskSpec
 from gym_soarm.tasks.cube import CUBE, CUBE_HALF_M, CUBE_STATE_FIELDS, CubeGridTask
@@ -59,8 +58,7 @@ class PickAndPlaceTask(PlacementScoring, CubeGridTask):
 
     def placed(self, sim: SimArrays) -> tuple[Array, Array]:
         """On the pad: the cube's centre within its radius and its bottom on the pad's top."""
-        offset = sim.object_position(self.cube)[..., :2] - sim.fixture_position(GOAL.name)[..., :2]
-        distance = batch_norm(offset)
+        distance = xy_distance(sim.object_position(self.cube), sim.fixture_position(GOAL.name))
         on_goal = (distance <= GOAL_RADIUS_M) & (
             sim.xp.abs(sim.object_height(self.cube) - GOAL_TOP_Z_M) <= PLACE_HEIGHT_TOL_M
         )

@@ -34,8 +34,7 @@ import gymnasium as gym
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.sim.arrays import Array, SimArrays, namespace
-from gym_soarm.sim.arrays import norm as batch_norm
+from gym_soarm.sim.arrays import Array, SimArrays, namespace, xy_distance
 from gym_soarm.sim.kinematics import JawPose
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
@@ -188,7 +187,7 @@ class PickAndPlaceCylinderTask(PlacementScoring, Task):
         """Standing on the pad: upright, centred within the pad's radius and with its
         bottom on the table."""
         position = sim.object_position(self.cylinder)
-        distance = batch_norm(position[..., :2] - sim.fixture_position(PAD.name)[..., :2])
+        distance = xy_distance(position, sim.fixture_position(PAD.name))
         upright = tilt_cosine(sim.object_quaternion(self.cylinder)) >= _COS_MAX_TILT
         bottom = position[..., 2] - CYLINDER_HALF_HEIGHT_M - constants.TABLE_TOP_Z_M
         on_table = sim.xp.abs(bottom) <= PLACE_HEIGHT_TOL_M

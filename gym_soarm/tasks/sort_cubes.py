@@ -37,9 +37,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.sim.arrays import Array, SimArrays
+from gym_soarm.sim.arrays import Array, SimArrays, xy_distance
 from gym_soarm.sim.arrays import namespace as sim_namespace
-from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene, SceneObject
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
@@ -159,10 +158,7 @@ class SortCubesTask(Task):
         """One cube's flags and distances, ``(n,)`` each (see :meth:`evaluate`)."""
         xp = sim.xp
         cube = cube_name(colour)
-        offset = (
-            sim.object_position(cube)[..., :2] - sim.fixture_position(pad_name(colour))[..., :2]
-        )
-        distance = batch_norm(offset)
+        distance = xy_distance(sim.object_position(cube), sim.fixture_position(pad_name(colour)))
         height = sim.object_height(cube)
         on_pad = (distance <= PAD_RADIUS_M) & (xp.abs(height - PAD_TOP_Z_M) <= PLACE_HEIGHT_TOL_M)
         # How far the jaws are from the cube: horizontally, and in height once more than

@@ -25,8 +25,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gym_soarm import constants
-from gym_soarm.sim.arrays import Array, SimArrays
-from gym_soarm.sim.arrays import norm as batch_norm
+from gym_soarm.sim.arrays import Array, SimArrays, xy_distance
 from gym_soarm.sim.objects import Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
@@ -102,7 +101,7 @@ class StackCubeTask(PlacementScoring, Task):
         """On the blue cube: centred within :data:`STACK_RADIUS_M` of it, the red cube's
         bottom on its top (held or not)."""
         red, blue = sim.object_position(self.top), sim.object_position(self.bottom)
-        offset = batch_norm(red[..., :2] - blue[..., :2])
+        offset = xy_distance(red, blue)
         blue_top = blue[..., 2] + CUBE_HALF_M
         red_bottom = sim.object_height(self.top) + constants.TABLE_TOP_Z_M
         on_blue = (offset <= STACK_RADIUS_M) & (
