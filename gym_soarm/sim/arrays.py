@@ -485,19 +485,23 @@ def xy_distance(points: Array, others: Array) -> Array:
     return distance(points[..., :2], others[..., :2])
 
 
+_PLAIN: dict[type, Any] = {np.float64: float, np.bool_: bool, float: float, bool: bool, int: int}
+
+
 def item(value: Any) -> Any:
     """One environment's unbatched value as its info gives it: a Python bool, int or
     float, a fresh array, or the value itself (a colour, a cell or None)."""
-    if isinstance(value, np.ndarray) and value.ndim > 0:
-        return value.copy()
+    convert = _PLAIN.get(type(value))  # the common scalar types, looked up at once
+    if convert is not None:
+        return convert(value)
+    if isinstance(value, np.ndarray):
+        return value.copy() if value.ndim else item(value[()])
     if isinstance(value, (np.bool_, bool)):
         return bool(value)
     if isinstance(value, (np.integer, int)):
         return int(value)
     if isinstance(value, (np.floating, float)):
         return float(value)
-    if isinstance(value, np.ndarray):  # 0-d
-        return item(value[()])
     return value
 
 

@@ -230,6 +230,11 @@ class Task:
         """The named reward terms, ``(n,)`` each in [0, 1], that never fall as the task
         progresses: :meth:`compute_reward_terms`, every term 1 on a success."""
         success = evaluation["success"]
+        if isinstance(success, (np.bool_, bool)):  # one environment: the same, as scalars
+            if success:
+                return dict.fromkeys(self.weights.terms, 1.0)
+            terms = self.compute_reward_terms(evaluation)
+            return {name: terms[name] for name in self.weights.terms}
         terms = self.compute_reward_terms(evaluation)
         xp = sim_namespace(success)
         return {name: xp.where(success, 1.0, terms[name]) for name in self.weights.terms}
