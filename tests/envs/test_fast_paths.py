@@ -18,6 +18,7 @@ from dm_control.rl import control
 import gym_soarm
 from gym_soarm.sim import cache, meshes, visual_meshes
 from gym_soarm.sim import scene as model
+from gym_soarm.sim.arrays import ARRAY_FIELDS, SimArrays, distance, norm, xy_distance
 from gym_soarm.sim.objects import EMPTY_SCENE
 from gym_soarm.sim.physics import SoArmPhysics
 
@@ -184,6 +185,7 @@ def test_cache_dir_follows_the_environment_variable(monkeypatch, tmp_path):
 _LOAD_AND_DESCRIBE = """
 import json, sys
 from gym_soarm.sim import scene as model
+from gym_soarm.sim.arrays import ARRAY_FIELDS, SimArrays, distance, norm, xy_distance
 from gym_soarm.sim.objects import EMPTY_SCENE
 m = model.load_scene_model(visual=sys.argv[1])
 print(json.dumps({"nmeshface": int(m.nmeshface), "mesh_vert": float(m.mesh_vert.sum()),
@@ -230,3 +232,57 @@ def test_compiled_model_is_cached_reused_and_rebuilt_when_damaged(tmp_path):
 def test_unknown_visual_variant_is_refused():
     with pytest.raises(ValueError, match="fast"):
         model.load_scene_model(visual="ultra")
+
+
+def test_actions_whose_sum_overflows_are_still_accepted(state_env):
+    state_env.reset(seed=0)
+    action = np.full(6, np.finfo(np.float64).max / 2)  # each finite, their sum is not
+    state_env.step(action)
+    np.testing.assert_allclose(
+        state_env.unwrapped.physics.joint_targets(), state_env.action_space.high, atol=1e-6
+    )
+    with pytest.raises(ValueError, match="finite"):
+        state_env.step(np.array([0.0, np.inf, 0.0, 0.0, -np.inf, 0.0]))
+
+
+@pytest.mark.parametrize(
+    "fault, reason",
+    [
+        ("cube_far", "cube was thrown"),
+        ("joint_turned", "joint 'wrist_roll' turned"),
+        ("qacc_nan", "NaN or inf"),
+        (None, None),
+    ],
+)
+def test_one_environments_divergence_check_finds_what_the_batchs_finds(state_env, fault, reason):
+    env = state_env.unwrapped
+    state_env.reset(seed=0)
+    state_env.step(np.zeros(6, dtype=np.float32))
+    core = env._world.core
+    sim = core.arrays()
+    if fault == "cube_far":
+        sim.qpos[sim.index.objects["cube"].qpos + 1] = -7.0
+    elif fault == "joint_turned":
+        sim.qpos[sim.index.arm_qpos[4]] = -3.5
+    elif fault == "qacc_nan":
+        sim.qacc[0] = np.nan
+    found = core.divergence(sim, {}, None)
+    # The batch's masks, on the same state seen as a batch of one.
+    batch = SimArrays(sim.index, {name: getattr(sim, name)[None] for name in ARRAY_FIELDS})
+    assert bool(core.unsound(batch)[0]) is (fault is not None)
+    if fault is None:
+        assert found == {}
+    else:
+        assert list(found) == [0] and reason in found[0]
+
+
+def test_distances_equal_the_norm_of_the_difference_bit_for_bit():
+    rng = np.random.default_rng(0)
+    points, others = rng.normal(size=(2, 50, 3))
+    batch = distance(points, others)
+    assert batch.tobytes() == norm(points - others).tobytes()
+    assert xy_distance(points, others).tobytes() == norm(points[:, :2] - others[:, :2]).tobytes()
+    for i in range(50):  # one environment's points: the plain-float path
+        one = distance(points[i], others[i])
+        assert type(one) is np.float64 and one == norm(points[i] - others[i]) == batch[i]
+        assert xy_distance(points[i], others[i]) == norm(points[i, :2] - others[i, :2])
