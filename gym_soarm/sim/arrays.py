@@ -462,21 +462,7 @@ def norm(vectors: Array) -> Array:
 
 
 def distance(points: Array, others: Array) -> Array:
-    """The Euclidean distance over the last axis: ``norm(points - others)``.
-
-    Two single points (one environment's) are subtracted and summed in Python floats, in
-    NumPy's order: the same result without NumPy's per-call cost.
-    """
-    if (
-        type(points) is np.ndarray
-        and type(others) is np.ndarray
-        and points.ndim == 1 == others.ndim
-    ):
-        total = 0.0
-        for a, b in zip(points.tolist(), others.tolist(), strict=True):
-            offset = a - b
-            total += offset * offset
-        return np.float64(math.sqrt(total))
+    """The Euclidean distance over the last axis: ``norm(points - others)``."""
     return norm(points - others)
 
 

@@ -77,7 +77,8 @@ class Backend(Protocol):
         ...
 
     def arrays(self, episode: dict[str, Any]) -> SimArrays:
-        """Live arrays of every simulation, with the tasks' per-episode values."""
+        """Live arrays of every simulation, with the tasks' per-episode values (a backend
+        may answer the same object each call, its cache cleared)."""
         ...
 
     def overflowed(self) -> Any:

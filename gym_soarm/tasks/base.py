@@ -147,7 +147,9 @@ class Task:
         self.episode: dict[str, np.ndarray] = {
             name: np.zeros((1, *shape)) for name, shape in self.episode_shapes.items()
         }
-        """This environment's :attr:`episode_shapes` values, each ``(1, *shape)``."""
+        """This environment's :attr:`episode_shapes` values, each ``(1, *shape)``: written
+        in place (``episode["k"][0] = ...``), never replaced, since the arrays a step
+        reads view them."""
 
     def set_placement(self, placement: str | None) -> None:
         """Choose how objects start (``None``: the task's default); ValueError if unsupported."""
@@ -213,7 +215,8 @@ class Task:
         )
 
     def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:
-        """The named reward terms, each ``(n,)`` in [0, 1], of states that are not a success.
+        """The named reward terms, each ``(n,)`` in [0, 1], of states that are not a success
+        (no side effects: one environment does not call it on a success).
 
         Read from ``evaluation`` (:meth:`evaluate`'s); :meth:`batch_reward_terms` scores
         every term of a success 1.

@@ -185,7 +185,6 @@ def test_cache_dir_follows_the_environment_variable(monkeypatch, tmp_path):
 _LOAD_AND_DESCRIBE = """
 import json, sys
 from gym_soarm.sim import scene as model
-from gym_soarm.sim.arrays import ARRAY_FIELDS, SimArrays, distance, norm, xy_distance
 from gym_soarm.sim.objects import EMPTY_SCENE
 m = model.load_scene_model(visual=sys.argv[1])
 print(json.dumps({"nmeshface": int(m.nmeshface), "mesh_vert": float(m.mesh_vert.sum()),
@@ -282,7 +281,7 @@ def test_distances_equal_the_norm_of_the_difference_bit_for_bit():
     batch = distance(points, others)
     assert batch.tobytes() == norm(points - others).tobytes()
     assert xy_distance(points, others).tobytes() == norm(points[:, :2] - others[:, :2]).tobytes()
-    for i in range(50):  # one environment's points: the plain-float path
+    for i in range(50):  # one environment's points, unbatched
         one = distance(points[i], others[i])
         assert type(one) is np.float64 and one == norm(points[i] - others[i]) == batch[i]
         assert xy_distance(points[i], others[i]) == norm(points[i, :2] - others[i, :2])
