@@ -158,8 +158,6 @@ class StepCore:
         if self._unbatched:
             if reasons:
                 return dict(reasons)
-            if self._sound(sim):
-                return {}
             reason = self._unsound(sim, None)
             return {} if reason is None else {0: reason}
         overflow = self.backend.overflowed()
@@ -197,32 +195,19 @@ class StepCore:
         return found
 
     @staticmethod
-    def _sound(sim: SimArrays) -> bool:
-        """Whether one environment's unbatched state passes every check of
-        :meth:`_unsound`: the same tests on one list of plain floats (this runs every step)."""
-        index = sim.index
-        qpos = sim.qpos.tolist()
-        total = sum(qpos) + sum(sim.qvel.tolist())
-        if not math.isfinite(total + sum(sim.qacc.tolist())):
-            return False
-        bound = constants.POSITION_BOUND_M
-        for item in index.objects.values():
-            q = item.qpos
-            if max(abs(qpos[q]), abs(qpos[q + 1]), abs(qpos[q + 2])) > bound:
-                return False
-        return max(abs(qpos[q]) for q in index.arm_qpos) <= math.pi
-
-    @staticmethod
     def _unsound(sim: SimArrays, i: int | None) -> str | None:
         """Why simulation ``i`` (None: the unbatched one) is unsound, in plain floats (a
         few NumPy reductions would cost more than the rest of one environment's step)."""
-        row = (lambda a: a) if i is None else (lambda a: a[i])
-        total = sum(row(sim.qpos).tolist()) + sum(row(sim.qvel).tolist())
-        if not math.isfinite(total + sum(row(sim.qacc).tolist())):
+        index = sim.index
+        # One list each, the objects and joints read from qpos by address.
+        qpos, qvel, qacc = [
+            (a if i is None else a[i]).tolist() for a in (sim.qpos, sim.qvel, sim.qacc)
+        ]
+        if not math.isfinite(sum(qpos) + sum(qvel) + sum(qacc)):
             return "the simulation state holds NaN or inf"
         farthest = None
-        for name in sim.index.objects:
-            position = row(sim.object_position(name)).tolist()
+        for name, item in index.objects.items():
+            position = qpos[item.qpos : item.qpos + 3]
             distance = max(map(abs, position))
             if farthest is None or distance > farthest[1]:
                 farthest = (name, distance, position)
@@ -232,7 +217,7 @@ class StepCore:
                 f"the {farthest[0]} was thrown to {where} m, more than "
                 f"{constants.POSITION_BOUND_M} m from the table"
             )
-        angles = row(sim.joint_angles()).tolist()
+        angles = [qpos[q] for q in index.arm_qpos]
         if max(map(abs, angles)) > math.pi:
             name, angle = max(
                 zip(constants.JOINT_NAMES, angles, strict=True), key=lambda item: abs(item[1])

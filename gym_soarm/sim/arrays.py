@@ -461,14 +461,9 @@ def norm(vectors: Array) -> Array:
     return namespace(vectors).sqrt((vectors * vectors).sum(-1))
 
 
-def distance(points: Array, others: Array) -> Array:
-    """The Euclidean distance over the last axis: ``norm(points - others)``."""
-    return norm(points - others)
-
-
 def xy_distance(points: Array, others: Array) -> Array:
     """The horizontal distance (x and y) of ``points`` from ``others``, ``(..., 3)`` each."""
-    return distance(points[..., :2], others[..., :2])
+    return norm(points[..., :2] - others[..., :2])
 
 
 _PLAIN: dict[type, Any] = {np.float64: float, np.bool_: bool, float: float, bool: bool, int: int}
@@ -505,7 +500,6 @@ __all__ = [
     "SCALARS",
     "SimArrays",
     "SimIndex",
-    "distance",
     "in_namespace",
     "item",
     "namespace",

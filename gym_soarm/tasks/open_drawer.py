@@ -44,8 +44,8 @@ import numpy as np
 
 from gym_soarm import constants
 from gym_soarm.sim.arrays import Array, SimArrays
-from gym_soarm.sim.arrays import distance as batch_distance
 from gym_soarm.sim.arrays import namespace as sim_namespace
+from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.kinematics import downward_rotation
 from gym_soarm.sim.objects import Fixture, FixtureGeom, FixtureJoint, Scene
 from gym_soarm.sim.physics import SoArmPhysics
@@ -311,9 +311,7 @@ class OpenDrawerTask(Task):
             "success": opening >= OPEN_SUCCESS_M,
             "opening_m": opening,
             "handle_touched": touched,
-            "handle_distance_m": batch_distance(
-                sim.grasp_center(), sim.fixture_position(DRAWER.name)
-            ),
+            "handle_distance_m": batch_norm(sim.grasp_center() - sim.fixture_position(DRAWER.name)),
         }
 
     def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:

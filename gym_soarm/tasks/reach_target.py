@@ -25,7 +25,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gym_soarm.sim.arrays import Array, SimArrays
-from gym_soarm.sim.arrays import distance as batch_distance
+from gym_soarm.sim.arrays import norm as batch_norm
 from gym_soarm.sim.objects import Fixture, FixtureGeom, Scene
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks.base import Evaluation, RewardWeights, Task, TaskSpec
@@ -69,7 +69,7 @@ class ReachTask(Task):
         physics.set_fixture_position(TARGET.name, rng.uniform((x0, y0, z0), (x1, y1, z1)))
 
     def evaluate(self, sim: SimArrays) -> Evaluation:
-        distance = batch_distance(sim.grasp_center(), sim.fixture_position(TARGET.name))
+        distance = batch_norm(sim.grasp_center() - sim.fixture_position(TARGET.name))
         return {"success": distance <= SUCCESS_DISTANCE_M, "target_distance_m": distance}
 
     def compute_reward_terms(self, evaluation: Evaluation) -> dict[str, Array]:

@@ -17,7 +17,8 @@ import math
 
 import numpy as np
 
-from gym_soarm.sim.arrays import Array, SimArrays, distance, namespace
+from gym_soarm.sim.arrays import Array, SimArrays, namespace
+from gym_soarm.sim.arrays import norm as batch_norm
 
 REACH_BOUND_M = 0.01
 """The reach term is 1 with the jaws' centre this close to the object."""
@@ -48,7 +49,7 @@ def tolerance(distance: Array, bound: float, margin: float) -> Array:
 
 def reach_distance(sim: SimArrays, name: str) -> Array:
     """``(n,)``: from the jaws' centre (``grasp_center``) to object ``name``'s centre (m)."""
-    return distance(sim.grasp_center(), sim.object_position(name))
+    return batch_norm(sim.grasp_center() - sim.object_position(name))
 
 
 def pick_progress(sim: SimArrays, name: str) -> dict[str, Array]:
