@@ -22,10 +22,12 @@ Gymnasium's autoreset disabled: each episode starts from its own training seed
 (:func:`training_seeds <gym_soarm.rl.runs.training_seeds>`), and the task's state expert
 (``make_expert(vector_env)``) labels the whole batch in one call. An environment with no
 episode left to start goes on stepping (a vector env steps all of them) but stores nothing.
+The validation episodes run on the same vector env, the student acting alone
+(:meth:`ImitationTrainer.validate`).
 
 A subclass says what the student is: how a step is stored (:meth:`record`), how the
 student acts (:meth:`student_actions`), how it is built (:meth:`start_learning`), trained
-(:meth:`fit`), scored (:meth:`policy`) and saved (:meth:`save`).
+(:meth:`fit`) and saved (:meth:`save`).
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ import numpy as np
 
 from gym_soarm.expert import make_expert
 from gym_soarm.rl.curves import TrainResult
-from gym_soarm.rl.evaluation import POLICY_FORMAT, SETTINGS_FILE, make_env, score
+from gym_soarm.rl.evaluation import POLICY_FORMAT, SETTINGS_FILE, make_env
 from gym_soarm.rl.runs import (
     TRAINING_SEEDS,
     VALIDATION_SEED,
@@ -77,6 +79,8 @@ class Gathering:
         self.infos: list[dict[str, Any]] = [{} for _ in range(n)]
         self.obs: Any = None
         self.successes = self.finished = self.stepped = 0
+        self.returns: list[float] = []
+        self._return = np.zeros(n)
         self.start(np.ones(n, np.bool_))
 
     @property
@@ -103,14 +107,17 @@ class Gathering:
         """Step every environment; returns the mask of those whose episode ended (each
         already reset: to the next seed, or a spare reset)."""
         live = self.live
-        self.obs, _, terminated, truncated, infos = self.venv.step(actions)
+        self.obs, rewards, terminated, truncated, infos = self.venv.step(actions)
         self.stepped += len(live)
+        self._return += np.where(live, rewards, 0.0)
         ended = np.logical_or(terminated, truncated)
         for i in range(len(ended)):
             self.infos[i] = env_info(infos, i)
             if ended[i] and live[i]:
                 self.finished += 1
                 self.successes += bool(self.infos[i].get("is_success", False))
+                self.returns.append(float(self._return[i]))
+        self._return[ended] = 0.0
         if ended.any():
             self.start(ended)
         return ended
@@ -213,15 +220,14 @@ class ImitationTrainer:
         if self.stop():
             return
         episodes = self.settings["eval_episodes"]
-        result = score(self.spec.name, self.env_kwargs, self.policy(), episodes, VALIDATION_SEED)
-        rate = result["success_rate"]
+        rate, mean_return = self.validate(episodes)
         self.folder.add_row(
             {
                 "round": round_,
                 "env_steps": self.env_steps,
                 "samples": self.stored(),
                 "success_rate": rate,
-                "mean_return": round(result["mean_return"], 4),
+                "mean_return": round(mean_return, 4),
                 "episodes": episodes,
             }
         )
@@ -234,6 +240,23 @@ class ImitationTrainer:
             "%s: round %d, %d samples, loss %.4f, %.0f s, success %.0f %%",
             self.title, round_, self.stored(), loss, self.folder.wall_s(), 100 * rate,
         )  # fmt: skip
+
+    def validate(self, episodes: int) -> tuple[float, float]:
+        """The student alone on ``episodes`` validation episodes (seeds
+        :data:`VALIDATION_SEED <gym_soarm.rl.runs.VALIDATION_SEED>` + k), played side by
+        side on the trainer's vector env with its actions computed in one batch; nothing
+        is stored. Returns the success rate and the mean return."""
+        run = Gathering(self.venv, [VALIDATION_SEED + k for k in range(episodes)], 0)
+        self.begin_episodes(run, run.live)
+        everyone = np.ones(self.venv.num_envs, np.bool_)
+        while run.live.any():
+            actions = self.student_actions(run, everyone)
+            before = run.obs
+            reset = run.step(actions)
+            self.after_step(before, actions)
+            if reset.any():
+                self.begin_episodes(run, reset)
+        return run.successes / run.finished, float(np.mean(run.returns))
 
     # ----------------------------------------------------------------------- gathering
     def gather(self, round_: int, episodes: int, beta: float) -> None:
@@ -306,10 +329,6 @@ class ImitationTrainer:
 
     def fit(self, epochs: int) -> float:
         """``epochs`` passes of regression over everything stored; the last pass's loss."""
-        raise NotImplementedError
-
-    def policy(self) -> Any:
-        """The student as ``policy(obs, info)`` for :func:`gym_soarm.rl.evaluation.score`."""
         raise NotImplementedError
 
     def save(self) -> None:

@@ -169,10 +169,10 @@ HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
         "default": {
             **_STATE_IMITATION_RUN,
             "algo": {
-                "demos": 50,
+                "demos": 200,
                 **_STATE_STUDENT,
                 "rounds": 5,
-                "episodes_per_round": 20,
+                "episodes_per_round": 40,
                 "round_epochs": 50,
                 "beta0": 0.5,
                 "beta_decay": 0.5,

@@ -399,9 +399,6 @@ class StateTrainer(ImitationTrainer):
     def student_actions(self, run: Gathering, mask: np.ndarray) -> np.ndarray:
         return np.asarray(self.learner(np.asarray(run.obs, np.float32)[mask]), np.float32)
 
-    def policy(self) -> Any:
-        return lambda obs, info: self.learner(obs[None])[0]
-
     def start_learning(self) -> None:
         """The normaliser (statistics of the demonstrations) and the PPO model."""
         import torch

@@ -25,9 +25,12 @@ if os.environ.get("GYM_SOARM_REQUIRE_RL") != "1":
 from interrupt import interrupt_when
 
 from gym_soarm.expert import make_expert
+from gym_soarm.rl.dagger import ImitationTrainer
 from gym_soarm.rl.evaluation import TrainedPolicy, make_env, read_settings, score
 from gym_soarm.rl.hyperparams import HYPERPARAMS, IMITATION, recipe
-from gym_soarm.rl.imitation import Dataset, train_imitation, training_seeds
+from gym_soarm.rl.imitation import Dataset, check_settings, train_imitation, training_seeds
+from gym_soarm.rl.runs import VALIDATION_SEED, RunFolder
+from gym_soarm.tasks import get_task
 from gym_soarm.rl.training import train
 
 pytestmark = pytest.mark.train
@@ -135,6 +138,30 @@ def test_dagger_aggregates_the_states_the_learner_visits(tmp_path):
     assert np.allclose(data.executed[demos], data.actions[demos])  # no DART noise
     action = learner(data.obs[~demos][0])
     assert action.shape == (6,)
+
+
+class _ExpertStudent(ImitationTrainer):
+    """A student that answers what the expert does: its validation must be the expert's."""
+
+    def student_actions(self, run, mask):
+        return np.clip(np.asarray(self.expert(run.obs, None), np.float32), -1.0, 1.0)[mask]
+
+
+def test_validation_side_by_side_plays_the_episodes_one_environment_plays(tmp_path):
+    # Seven episodes on four environments: three start where others ended, and spare
+    # resets keep stepping without counting.
+    settings = check_settings("dagger", recipe("dagger", "ReachTarget-v0"))
+    folder = RunFolder(tmp_path, "").prepare()
+    trainer = _ExpertStudent("dagger", get_task("ReachTarget-v0"), folder, 0, settings)
+    trainer.venv = trainer.make_vector_env()
+    try:
+        trainer.expert = make_expert(trainer.venv)
+        rate, mean_return = trainer.validate(7)
+    finally:
+        trainer.venv.close()
+    one = score("ReachTarget-v0", settings["env"], None, 7, VALIDATION_SEED)
+    assert rate == one["success_rate"]
+    assert mean_return == pytest.approx(one["mean_return"], rel=1e-9)
 
 
 def test_ppo_starts_from_the_imitation_policy(tmp_path, bc_reach):
