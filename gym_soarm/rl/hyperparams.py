@@ -92,6 +92,8 @@ _STATE_STUDENT: dict[str, Any] = {
     "epochs": 200,
     "batch_size": 256,
     "learning_rate": 1e-3,
+    "lr_schedule": "constant",
+    "episode_weighting": False,
     "policy_kwargs": {"net_arch": [256, 256]},
 }
 """The state BC and DAgger students' shared network and fit."""
@@ -168,6 +170,7 @@ HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
     "dagger": {
         "default": {
             **_STATE_IMITATION_RUN,
+            "eval_episodes": 50,
             "algo": {
                 "demos": 200,
                 **_STATE_STUDENT,
@@ -176,6 +179,7 @@ HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
                 "round_epochs": 50,
                 "beta0": 0.5,
                 "beta_decay": 0.5,
+                "patience": 5,
             },
         },
         REACH: {"algo": {"dart_std": 0.15}},

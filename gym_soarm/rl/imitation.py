@@ -75,7 +75,13 @@ from gym_soarm.rl.pixels import (
     is_pixel_env,
     store_bound,
 )
-from gym_soarm.rl.runs import RunFolder, check_run_numbers, training_seeds
+from gym_soarm.rl.runs import (
+    RunFolder,
+    check_run_numbers,
+    episode_weights,
+    learning_rates,
+    training_seeds,
+)
 from gym_soarm.tasks import get_task
 from gym_soarm.validation import ArgumentTypeError, check_int
 
@@ -154,22 +160,34 @@ def fit(
     batch_size: int,
     generator: Any,
     stop: Callable[[], bool] | None = None,
+    weight: np.ndarray | None = None,
+    rate: Callable[[int, int], float] | None = None,
 ) -> float:
     """Regress the actor's mean action on ``actions`` (MSE) for ``epochs`` passes over
-    ``obs`` (already normalised); returns the last epoch's mean loss."""
+    ``obs`` (already normalised); returns the last epoch's mean loss. ``weight``: each
+    sample's weight in the loss (default 1); ``rate(epoch, step)``: the learning rate of
+    each optimiser step (default: the optimiser's own)."""
     import torch
 
     x = torch.as_tensor(obs, dtype=torch.float32)
     y = torch.as_tensor(actions, dtype=torch.float32)
+    w = None if weight is None else torch.as_tensor(weight, dtype=torch.float32)
     policy.set_training_mode(True)
     loss_value = float("nan")
     try:
-        for _ in range(epochs):
+        for epoch in range(epochs):
             order = torch.randperm(len(x), generator=generator)
             total = 0.0
-            for begin in range(0, len(x), batch_size):
+            for step, begin in enumerate(range(0, len(x), batch_size)):
+                if rate is not None:
+                    for group in optimizer.param_groups:
+                        group["lr"] = rate(epoch, step)
                 index = order[begin : begin + batch_size]
-                loss = torch.nn.functional.mse_loss(actor_mean(policy, x[index]), y[index])
+                mean = actor_mean(policy, x[index])
+                if w is None:
+                    loss = torch.nn.functional.mse_loss(mean, y[index])
+                else:
+                    loss = ((mean - y[index]).square().mean(1) * w[index]).mean()
                 optimizer.zero_grad()
                 loss.backward()
                 optimizer.step()
@@ -357,6 +375,7 @@ class StateTrainer(ImitationTrainer):
         self.model_env: Any = None
         self.model: Any = None
         self.optimizer: Any = None
+        self.fits = 0
 
     def run(self) -> TrainResult:
         try:
@@ -427,10 +446,14 @@ class StateTrainer(ImitationTrainer):
         )
 
     def fit(self, epochs: int) -> float:
-        data = self.dataset()
+        data, params = self.dataset(), self.params
+        batches = -(-len(data) // params["batch_size"])
+        rate = learning_rates(params, epochs, batches, first=self.fits == 0)
+        self.fits += 1
+        weight = episode_weights(data.episode, params) if params["episode_weighting"] else None
         return fit(
             self.model.policy, self.optimizer, self.normalized(data.obs), data.actions,
-            epochs, self.params["batch_size"], self.generator, self.stop,
+            epochs, params["batch_size"], self.generator, self.stop, weight, rate,
         )  # fmt: skip
 
     def save(self) -> None:

@@ -12,7 +12,6 @@ the last one down by ``downsample`` once, so an epoch costs the network alone.
 from __future__ import annotations
 
 import logging
-import math
 import time
 from pathlib import Path
 from typing import Any
@@ -35,6 +34,7 @@ from gym_soarm.rl.pixels import (
     random_shift,
     store_bound,
 )
+from gym_soarm.rl.runs import episode_weights, learning_rates
 
 logger = logging.getLogger(__name__)
 
@@ -48,45 +48,6 @@ def camera_obs(obs: Any, index: int) -> dict[str, Any]:
         "pixels": {camera: image[index] for camera, image in obs["pixels"].items()},
         "agent_pos": obs["agent_pos"][index],
     }
-
-
-def episode_weights(episodes: np.ndarray, params: dict[str, Any]) -> np.ndarray:
-    """Each stored step's weight in the loss: 1 for all, or with ``episode_weighting``
-    (the recipe's, where it has it) the mean episode length over its episode's length, so
-    that every episode counts alike and a long failed one (a student hovering to the time
-    limit) does not outweigh the short successful ones. The weights average 1."""
-    if not params.get("episode_weighting", False) or len(episodes) == 0:
-        return np.ones(len(episodes), np.float32)
-    _, inverse, counts = np.unique(episodes, return_inverse=True, return_counts=True)
-    weights = counts.mean() / counts[inverse]
-    return (weights / weights.mean()).astype(np.float32)
-
-
-def learning_rates(
-    params: dict[str, Any], epochs: int, steps_per_epoch: int, first: bool = True
-) -> Any:
-    """The learning rate of each optimiser step of a fit, ``rate(epoch, step)``: the
-    recipe's ``learning_rate`` throughout (``round_learning_rate`` in the DAgger rounds'
-    fits after the ``first``, where the recipe has one), or with ``lr_schedule="cosine"``
-    annealed along a half cosine to a hundredth of it by the fit's last step (each fit,
-    each DAgger round, starts again from its full rate)."""
-    base, schedule = params["learning_rate"], params.get("lr_schedule", "constant")
-    if not first and params.get("round_learning_rate") is not None:
-        base = params["round_learning_rate"]
-    if schedule == "constant":
-        return lambda epoch, step: base
-    if schedule != "cosine":
-        raise ValueError(
-            f"lr_schedule is 'constant' or 'cosine'; got {schedule!r}. "
-            "Pass --hyperparams lr_schedule=\"'cosine'\"."
-        )
-    total = max(epochs * steps_per_epoch - 1, 1)
-
-    def rate(epoch: int, step: int) -> float:
-        done = (epoch * steps_per_epoch + step) / total
-        return base * (0.01 + 0.99 * 0.5 * (1.0 + math.cos(math.pi * done)))
-
-    return rate
 
 
 class PixelTrainer(ImitationTrainer):
@@ -110,7 +71,6 @@ class PixelTrainer(ImitationTrainer):
             worst,
             worst * per_sample / 2**30,
         )
-        learning_rates(self.params, 1, 1)  # an unknown schedule is refused before anything runs
         torch.set_num_threads(settings["torch_threads"])
         torch.manual_seed(seed)
         # The first optimizer imports its optional compilers now, before a GL context exists.

@@ -435,8 +435,6 @@ def check_pixel_settings(algo: str, settings: dict[str, Any]) -> dict[str, Any]:
             f"aux_input must be true or false (the auxiliary estimate as an input of the "
             f"action's MLP); got {aux_input!r}."
         )
-    if algo == "dagger":
-        params["patience"] = check_int("patience", params.get("patience", params["rounds"]), 1)
     if params["max_memory_gb"] == 0:
         raise ValueError("max_memory_gb must be a number > 0; got 0.")
     for key, size in (("channels", 4), ("hidden", None)):

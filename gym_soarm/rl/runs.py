@@ -1,10 +1,12 @@
 """What the imitation trainers' runs share: the curve's file and columns, the training
-episodes' reset seeds and Ctrl-C handling (a run stops cleanly, keeping its checkpoint)."""
+episodes' reset seeds, the recipe's numbers, the fit's weights and learning rates, and
+Ctrl-C handling (a run stops cleanly, keeping its checkpoint)."""
 
 from __future__ import annotations
 
 import csv
 import json
+import math
 import signal
 import threading
 import time
@@ -15,7 +17,7 @@ import numpy as np
 
 from gym_soarm import __version__
 from gym_soarm.rl.curves import TrainResult, write_curve_png
-from gym_soarm.validation import check_int, check_number
+from gym_soarm.validation import ArgumentTypeError, check_int, check_number
 
 CURVE_CSV = "curve.csv"
 CURVE_PNG = "curve.png"
@@ -52,6 +54,45 @@ def dart_noise(labels: np.ndarray, std: float, rng: np.random.Generator) -> np.n
         return labels
     noise = rng.normal(0.0, std, np.shape(labels)).astype(np.float32)
     return np.clip(labels + noise, -1.0, 1.0).astype(np.float32)
+
+
+def episode_weights(episodes: np.ndarray, params: dict[str, Any]) -> np.ndarray:
+    """Each stored step's weight in the loss: 1 for all, or with ``episode_weighting``
+    (the recipe's, where it has it) the mean episode length over its episode's length, so
+    that every episode counts alike and a long failed one (a student hovering to the time
+    limit) does not outweigh the short successful ones. The weights average 1."""
+    if not params.get("episode_weighting", False) or len(episodes) == 0:
+        return np.ones(len(episodes), np.float32)
+    _, inverse, counts = np.unique(episodes, return_inverse=True, return_counts=True)
+    weights = counts.mean() / counts[inverse]
+    return (weights / weights.mean()).astype(np.float32)
+
+
+def learning_rates(
+    params: dict[str, Any], epochs: int, steps_per_epoch: int, first: bool = True
+) -> Any:
+    """The learning rate of each optimiser step of a fit, ``rate(epoch, step)``: the
+    recipe's ``learning_rate`` throughout (``round_learning_rate`` in the DAgger rounds'
+    fits after the ``first``, where the recipe has one), or with ``lr_schedule="cosine"``
+    annealed along a half cosine to a hundredth of it by the fit's last step (each fit,
+    each DAgger round, starts again from its full rate)."""
+    base, schedule = params["learning_rate"], params.get("lr_schedule", "constant")
+    if not first and params.get("round_learning_rate") is not None:
+        base = params["round_learning_rate"]
+    if schedule == "constant":
+        return lambda epoch, step: base
+    if schedule != "cosine":
+        raise ValueError(
+            f"lr_schedule is 'constant' or 'cosine'; got {schedule!r}. "
+            "Pass --hyperparams lr_schedule=\"'cosine'\"."
+        )
+    total = max(epochs * steps_per_epoch - 1, 1)
+
+    def rate(epoch: int, step: int) -> float:
+        done = (epoch * steps_per_epoch + step) / total
+        return base * (0.01 + 0.99 * 0.5 * (1.0 + math.cos(math.pi * done)))
+
+    return rate
 
 
 class RunFolder:
@@ -154,6 +195,15 @@ def check_run_numbers(
             if value > 1:
                 raise ValueError(f"{key} must be a number from 0 to 1; got {value!r}.")
             params[key] = value
+        if "patience" in params:
+            params["patience"] = check_int("patience", params["patience"], 1)
+    weighting = params.get("episode_weighting", False)
+    if not isinstance(weighting, bool):
+        raise ArgumentTypeError(
+            "episode_weighting must be true or false (every episode's steps weighted to count "
+            f"alike); got {weighting!r}."
+        )
+    learning_rates(params, 1, 1)  # an unknown schedule is refused here
     return settings
 
 

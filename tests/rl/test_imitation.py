@@ -30,8 +30,8 @@ from gym_soarm.rl.evaluation import TrainedPolicy, make_env, read_settings, scor
 from gym_soarm.rl.hyperparams import HYPERPARAMS, IMITATION, recipe
 from gym_soarm.rl.imitation import Dataset, check_settings, train_imitation, training_seeds
 from gym_soarm.rl.runs import VALIDATION_SEED, RunFolder
-from gym_soarm.tasks import get_task
 from gym_soarm.rl.training import train
+from gym_soarm.tasks import get_task
 
 pytestmark = pytest.mark.train
 
