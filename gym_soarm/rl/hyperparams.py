@@ -40,10 +40,13 @@ process, their actions computed in one batch), ``torch_threads``, ``normalize``
   recorded label is the clean expert action;
 * ``epochs``, ``batch_size``, ``learning_rate``: the supervised regression (Adam, mean
   squared error of the actor's mean action); ``policy_kwargs``: the SB3 ``MlpPolicy``'s;
+  ``lr_schedule`` and ``episode_weighting``: as the pixel students' (below);
 * DAgger only: ``rounds`` (R), ``episodes_per_round``, ``round_epochs`` (epochs over all
   the aggregated data after each round, warm-started), ``beta0`` and ``beta_decay``: in
   round r (1 .. R) each step executes the expert's action with probability
-  ``beta0 * beta_decay ** r``, else the learner's; the expert labels every step.
+  ``beta0 * beta_decay ** r``, else the learner's; the expert labels every step;
+  ``patience``: the rounds stop once this many in a row failed to beat the best
+  validation.
 """
 
 from __future__ import annotations
