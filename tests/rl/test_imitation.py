@@ -11,6 +11,7 @@ import json
 import os
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -164,6 +165,28 @@ def test_validation_side_by_side_plays_the_episodes_one_environment_plays(tmp_pa
     assert mean_return == pytest.approx(one["mean_return"], rel=1e-9)
 
 
+def test_episode_weights_and_a_cosine_rate_change_the_state_fit_and_nothing_else(tmp_path):
+    # The same demonstrations (same seed) fitted three ways: plain, each episode counting
+    # alike, and with the rate annealed. The data is the same; the weights are not.
+    weights = {}
+    for name, extra in (
+        ("plain", {}),
+        ("weighted", {"episode_weighting": True}),
+        ("cosine", {"lr_schedule": "cosine"}),
+    ):
+        out = tmp_path / name
+        train_imitation("bc", "reach", out, seed=3, eval_episodes=1, hyperparams={**TINY, **extra})
+        with zipfile.ZipFile(out / "model.zip") as archive:
+            weights[name] = archive.read("policy.pth")
+        data = Dataset.load(out / "demos.npz")
+        if name == "plain":
+            first = data
+        else:
+            assert np.array_equal(data.actions, first.actions)
+    assert weights["weighted"] != weights["plain"] != weights["cosine"]
+    assert read_settings(tmp_path / "weighted")["recipe"]["algo"]["episode_weighting"] is True
+
+
 def test_ppo_starts_from_the_imitation_policy(tmp_path, bc_reach):
     out = tmp_path / "ppo"
     train("ppo", "reach", out, seed=0, steps=256, eval_every=256, eval_episodes=1,
@@ -231,6 +254,9 @@ def test_init_from_another_task_is_refused_naming_both(tmp_path, bc_reach):
         ("dagger", {"rounds": 0}, "rounds must be an int from 1 to 99"),
         ("dagger", {"beta0": 1.5}, "beta0 must be a number from 0 to 1"),
         ("dagger", {"episodes_per_round": 1000}, "episodes_per_round must be an int"),
+        ("dagger", {"patience": 0}, "patience must be an int"),
+        ("bc", {"lr_schedule": "linear"}, "lr_schedule is 'constant' or 'cosine'; got 'linear'"),
+        ("dagger", {"episode_weighting": 1}, "episode_weighting must be true or false"),
     ],
 )
 def test_bad_numbers_are_refused_before_training(tmp_path, algo, hyperparams, message):
