@@ -109,7 +109,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--eval-episodes",
         type=int_at_least(1),
         default=None,
-        help="protocol episodes per evaluation (default: the recipe's)",
+        help="episodes per evaluation (default: the recipe's): the protocol's for ppo and sac, "
+        "validation episodes (seeds 50000 + k) for bc and dagger",
     )
     parser.add_argument(
         "--hyperparams",

@@ -247,8 +247,8 @@ class ImitationTrainer:
         side on the trainer's vector env with its actions computed in one batch; nothing
         is stored. Returns the success rate and the mean return."""
         run = Gathering(self.venv, [VALIDATION_SEED + k for k in range(episodes)], 0)
-        self.begin_episodes(run, run.live)
         everyone = np.ones(self.venv.num_envs, np.bool_)
+        self.begin_episodes(run, everyone)  # the spare resets too: the student drives them
         while run.live.any():
             actions = self.student_actions(run, everyone)
             before = run.obs

@@ -18,7 +18,8 @@ Keys of a recipe:
   ``VecNormalize``), saved beside the model.
 * ``steps``: environment steps of a run (``--steps`` overrides it).
 * ``eval_every``: environment steps between two evaluations on the protocol;
-  ``eval_episodes``: episodes of each (seeds 1000 + k).
+  ``eval_episodes``: episodes of each (seeds 1000 + k; the imitation trainers score
+  validation episodes instead, seeds 50000 + k).
 * ``algo``: keyword arguments of the SB3 algorithm (``policy_kwargs`` included).
 * ``init`` (PPO only): how ``--init DIR`` starts PPO from a BC/DAgger policy:
   ``log_std`` (the log standard deviation of the exploration noise at the start, low so
@@ -261,8 +262,8 @@ augmentation, in pixels of the stored image), ``max_memory_gb`` (the bound on th
 stored frames), ``aux_weight`` (the weight of the auxiliary targets' loss: what the state
 expert reads, predicted from the images; 0 turns them off), ``aux_input`` (their estimate
 also feeds the action's MLP), ``lr_schedule`` (``"constant"`` or ``"cosine"``: each fit
-anneals the rate to a hundredth of ``learning_rate``) and, for DAgger,
-``episode_weighting`` (each step's loss weighted so that every episode counts alike),
+anneals the rate to a hundredth of ``learning_rate``), ``episode_weighting`` (each
+step's loss weighted so that every episode counts alike) and, for DAgger,
 ``round_learning_rate`` (the rounds' fits start from this rate instead of
 ``learning_rate``; None: the same) and ``patience`` (the rounds stop once this many in a
 row fail to beat the best evaluation)."""

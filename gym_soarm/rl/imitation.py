@@ -470,7 +470,8 @@ class StateTrainer(ImitationTrainer):
     def on_interrupt(self) -> None:
         if self.model is None and self.stored():
             self.start_learning()
-        self.save()
+        if not (self.out_path / MODEL_FILE).exists():  # else the best round's stays
+            self.save()
         if self.model is not None:
             self.after_evaluation()
             self.write_settings()

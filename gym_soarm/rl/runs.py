@@ -83,8 +83,8 @@ def learning_rates(
         return lambda epoch, step: base
     if schedule != "cosine":
         raise ValueError(
-            f"lr_schedule is 'constant' or 'cosine'; got {schedule!r}. "
-            "Pass --hyperparams lr_schedule=\"'cosine'\"."
+            f"lr_schedule is 'constant' or 'cosine'; got {schedule!r}. Pass --hyperparams "
+            "lr_schedule=\"'constant'\" or lr_schedule=\"'cosine'\"."
         )
     total = max(epochs * steps_per_epoch - 1, 1)
 
@@ -196,12 +196,23 @@ def check_run_numbers(
                 raise ValueError(f"{key} must be a number from 0 to 1; got {value!r}.")
             params[key] = value
         if "patience" in params:
-            params["patience"] = check_int("patience", params["patience"], 1)
+            params["patience"] = check_int(
+                "patience", params["patience"], 1,
+                fix="Pass e.g. --hyperparams patience=3 (as many as the rounds: never early).",
+            )  # fmt: skip
+        if params.get("round_learning_rate") is not None:
+            rate = check_number("round_learning_rate", params["round_learning_rate"], 0.0)
+            if rate == 0:
+                raise ValueError(
+                    "round_learning_rate must be a finite number > 0, or None for the "
+                    "learning_rate; got 0. Pass e.g. --hyperparams round_learning_rate=3e-4."
+                )
+            params["round_learning_rate"] = rate
     weighting = params.get("episode_weighting", False)
     if not isinstance(weighting, bool):
         raise ArgumentTypeError(
             "episode_weighting must be true or false (every episode's steps weighted to count "
-            f"alike); got {weighting!r}."
+            f"alike); got {weighting!r}. Pass --hyperparams episode_weighting=True (or False)."
         )
     learning_rates(params, 1, 1)  # an unknown schedule is refused here
     return settings

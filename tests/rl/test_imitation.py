@@ -183,7 +183,9 @@ def test_episode_weights_and_a_cosine_rate_change_the_state_fit_and_nothing_else
             first = data
         else:
             assert np.array_equal(data.actions, first.actions)
-    assert weights["weighted"] != weights["plain"] != weights["cosine"]
+    assert weights["weighted"] != weights["plain"]
+    assert weights["cosine"] != weights["plain"]
+    assert weights["cosine"] != weights["weighted"]
     assert read_settings(tmp_path / "weighted")["recipe"]["algo"]["episode_weighting"] is True
 
 

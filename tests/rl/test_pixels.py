@@ -361,6 +361,24 @@ def test_bad_pixel_settings_are_refused_before_anything_is_written(
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    ("hyperparams", "message"),
+    [
+        ({"round_learning_rate": 0}, "round_learning_rate must be a finite number > 0"),
+        ({"round_learning_rate": "fast"}, "round_learning_rate must be a finite number"),
+        ({"patience": 0}, "patience must be an int"),
+    ],
+)
+def test_bad_dagger_round_settings_are_refused_before_anything_is_written(
+    tmp_path, hyperparams, message
+):
+    out = tmp_path / "run"
+    env = {"obs_type": "pixels_agent_pos"}
+    with pytest.raises((ValueError, TypeError), match=message):
+        train_imitation("dagger", "lift", out, env=env, hyperparams=hyperparams)
+    assert not out.exists()
+
+
 def test_a_task_without_a_state_expert_is_refused(tmp_path):
     from gym_soarm.rl.imitation import check_pixel_student
     from gym_soarm.tasks import get_task
