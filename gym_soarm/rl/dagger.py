@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +49,7 @@ from gym_soarm.rl.runs import (
     VALIDATION_SEED,
     RunFolder,
     dart_noise,
+    learning_rates,
     training_seeds,
 )
 
@@ -151,7 +153,7 @@ class ImitationTrainer:
         self.settings, self.params, self.device = settings, settings["algo"], device
         self.env_kwargs = dict(settings["env"])
         self.rng = np.random.default_rng([seed, self.rng_stream])
-        self.env_steps = self.episodes = 0
+        self.env_steps = self.episodes = self.fits = 0
         self.best = -1.0
         self.learning = False
         self.venv: gym.vector.VectorEnv | None = None
@@ -257,6 +259,16 @@ class ImitationTrainer:
             if reset.any():
                 self.begin_episodes(run, reset)
         return run.successes / run.finished, float(np.mean(run.returns))
+
+    def fit_rates(self, epochs: int, samples: int) -> Callable[[int, int], float]:
+        """The learning rate of each optimiser step of the next fit, ``epochs`` passes over
+        ``samples`` in minibatches of the recipe's ``batch_size``
+        (:func:`learning_rates <gym_soarm.rl.runs.learning_rates>`: the first fit is
+        round 0's); counts the fit."""
+        steps = -(-samples // self.params["batch_size"])
+        rate = learning_rates(self.params, epochs, steps, first=self.fits == 0)
+        self.fits += 1
+        return rate
 
     # ----------------------------------------------------------------------- gathering
     def gather(self, round_: int, episodes: int, beta: float) -> None:

@@ -79,7 +79,6 @@ from gym_soarm.rl.runs import (
     RunFolder,
     check_run_numbers,
     episode_weights,
-    learning_rates,
     training_seeds,
 )
 from gym_soarm.tasks import get_task
@@ -375,7 +374,6 @@ class StateTrainer(ImitationTrainer):
         self.model_env: Any = None
         self.model: Any = None
         self.optimizer: Any = None
-        self.fits = 0
 
     def run(self) -> TrainResult:
         try:
@@ -447,9 +445,7 @@ class StateTrainer(ImitationTrainer):
 
     def fit(self, epochs: int) -> float:
         data, params = self.dataset(), self.params
-        batches = -(-len(data) // params["batch_size"])
-        rate = learning_rates(params, epochs, batches, first=self.fits == 0)
-        self.fits += 1
+        rate = self.fit_rates(epochs, len(data))
         weight = episode_weights(data.episode, params) if params["episode_weighting"] else None
         return fit(
             self.model.policy, self.optimizer, self.normalized(data.obs), data.actions,

@@ -34,7 +34,7 @@ from gym_soarm.rl.pixels import (
     random_shift,
     store_bound,
 )
-from gym_soarm.rl.runs import episode_weights, learning_rates
+from gym_soarm.rl.runs import episode_weights
 
 logger = logging.getLogger(__name__)
 
@@ -81,7 +81,6 @@ class PixelTrainer(ImitationTrainer):
         self.optimizer: Any = None
         self.mean = self.std = self.aux_mean = self.aux_std = None
         self._pooled: dict[str, Any] = {}
-        self.fits = 0
         self.generator = torch.Generator().manual_seed(seed)
         kind = "BC" if algo == "bc" else "DAgger"
         self.title = f"{kind} from pixels on {spec.name}, seed {seed}"
@@ -199,8 +198,7 @@ class PixelTrainer(ImitationTrainer):
         aux = torch.as_tensor((store.aux[:n] - self.aux_mean) / self.aux_std, device=device)
         weight = torch.as_tensor(episode_weights(store.episode[:n], params), device=device)
         batch = params["batch_size"]
-        schedule = learning_rates(params, epochs, -(-n // batch), first=self.fits == 0)
-        self.fits += 1
+        schedule = self.fit_rates(epochs, n)
         self.net.train()
         loss_value, began = float("nan"), time.perf_counter()
         for epoch in range(epochs):
