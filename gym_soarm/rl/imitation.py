@@ -72,6 +72,7 @@ from gym_soarm.rl.pixels import (
     PIXEL_MODEL_FILE,
     PIXEL_OBS_TYPES,
     check_pixel_settings,
+    demos_within_store,
     is_pixel_env,
     store_bound,
 )
@@ -329,7 +330,8 @@ def train_imitation(
         )
     spec = get_task(task)  # ValueError naming the registered tasks
     pixels = is_pixel_env(env or {})
-    settings = pixel_recipe(algo, spec.name) if pixels else recipe(algo, spec.name)
+    looks = (env or {}).get("visual_randomization", "none")
+    settings = pixel_recipe(algo, spec.name, looks) if pixels else recipe(algo, spec.name)
     settings["env"] = merge_keywords(settings["env"], spec.name, env)
     if pixels:
         check_pixel_student(spec, settings["env"])
@@ -345,6 +347,8 @@ def train_imitation(
     require_sb3()
     pyplot()
     if pixels:
+        if "demos" not in (hyperparams or {}):
+            demos_within_store(algo, spec, settings)
         store_bound(algo, spec, settings)  # a ValueError before the folder is made
     folder = RunFolder(out_path, "").prepare(
         (MODEL_FILE, NORMALIZE_FILE, DEMOS_FILE, PIXEL_MODEL_FILE)

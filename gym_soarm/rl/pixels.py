@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import logging
 import os
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -468,8 +469,28 @@ def worst_case_samples(algo: str, params: Mapping[str, Any], max_episode_steps: 
     return episodes * max_episode_steps
 
 
+def demos_within_store(algo: str, spec: Any, settings: dict[str, Any]) -> None:
+    """Lower the recipe's ``demos`` to as many episodes as ``max_memory_gb`` holds beside
+    the rounds' episodes, each counted at its step limit (the :data:`DRAWN_LOOKS
+    <gym_soarm.rl.hyperparams.DRAWN_LOOKS>` row's 300 on a 400-step task); a warning says
+    so. A ``demos`` the user passed, or a run whose rounds alone pass the bound, is left
+    for :func:`store_bound` to refuse."""
+    params = settings["algo"]
+    rounds = params["rounds"] * params["episodes_per_round"] if algo == "dagger" else 0
+    _, _, _, _, _, budget = store_bound(algo, spec, settings, check=False)
+    fits = budget // spec.max_episode_steps - rounds
+    if 1 <= fits < params["demos"]:
+        warnings.warn(
+            f"the recipe's {params['demos']} demonstrations would pass max_memory_gb="
+            f"{params['max_memory_gb']} on {spec.name}; gathering {fits}. Pass --hyperparams "
+            "max_memory_gb=N to keep them.",
+            stacklevel=2,
+        )
+        params["demos"] = fits
+
+
 def store_bound(
-    algo: str, spec: Any, settings: Mapping[str, Any]
+    algo: str, spec: Any, settings: Mapping[str, Any], check: bool = True
 ) -> tuple[tuple[str, ...], int, int, int, int, int]:
     """The cameras, image height and width, bytes a stored step, the steps a run could
     store at most and the steps ``max_memory_gb`` holds; a ValueError when the first is
@@ -483,7 +504,7 @@ def store_bound(
     per_sample = FrameStore.bytes_per_sample(len(cameras), height, width)
     worst = worst_case_samples(algo, params, spec.max_episode_steps)
     budget = int(params["max_memory_gb"] * 2**30 / per_sample)
-    if worst > budget:
+    if check and worst > budget:
         raise ValueError(
             f"this run could store {worst} steps of {per_sample} bytes "
             f"({worst * per_sample / 2**30:.1f} GiB: {len(cameras)} cameras at {height}x{width}), "
@@ -499,6 +520,7 @@ __all__ = [
     "FrameStore",
     "PixelPolicy",
     "build_network",
+    "demos_within_store",
     "is_pixel_env",
     "privileged_targets",
     "random_shift",
