@@ -11,6 +11,7 @@ import json
 import os
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import gymnasium as gym
@@ -36,6 +37,7 @@ from gym_soarm.rl.pixels import (
     PixelPolicy,
     check_pixel_settings,
     command_map,
+    demos_within_store,
     proprioception,
     random_shift,
     store_bound,
@@ -169,6 +171,53 @@ def test_the_default_pixel_dagger_recipe_fits_its_memory_bound(task):
     settings["algo"]["demos"] += budget  # more episodes than the bound holds steps: refused
     with pytest.raises(ValueError, match="max_memory_gb"):
         store_bound("dagger", get_task(task), settings)
+
+
+@pytest.mark.parametrize("task", [t for t in BUILTIN_TASKS if get_task(t).max_episode_steps <= 400])
+def test_drawn_looks_double_the_demonstrations_within_the_memory_bound(task):
+    # Under light or heavy looks the DAgger recipe gathers 300 demonstrations where the
+    # default gathers 150, as many as max_memory_gb holds on the longer tasks (a warning).
+    plain = pixel_recipe("dagger", task)
+    for looks in ("light", "heavy"):
+        settings = check_pixel_settings("dagger", pixel_recipe("dagger", task, looks))
+        demos = settings["algo"]["demos"]
+        assert demos == (plain["algo"]["demos"] if task == "ReachTarget-v0" else 300)
+        spec = get_task(task)
+        *_, budget = store_bound("dagger", spec, settings, check=False)
+        over = budget // spec.max_episode_steps < demos + 120
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            demos_within_store("dagger", spec, settings)
+        assert [str(w.message) for w in caught if "max_memory_gb" in str(w.message)] == (
+            [f"the recipe's 300 demonstrations would pass max_memory_gb=8.0 on {task}; "
+             f"gathering {settings['algo']['demos']}. Pass --hyperparams max_memory_gb=N "
+             "to keep them."] if over else []
+        )  # fmt: skip
+        assert (settings["algo"]["demos"] < demos) == over
+        *_, worst, budget = store_bound("dagger", spec, settings)
+        assert worst <= budget
+    assert pixel_recipe("bc", task, "light") == pixel_recipe("bc", task)
+
+
+def test_a_light_run_lowers_only_the_recipes_demonstrations_to_its_memory_bound(tmp_path):
+    env = {"obs_type": "pixels_agent_pos", "camera_config": "front_wrist",
+           "observation_height": 48, "observation_width": 64, "visual_randomization": "light"}  # fmt: skip
+    tiny = {"epochs": 1, "batch_size": 32, "channels": [4, 4, 4, 4], "hidden": [16],
+            "rounds": 1, "episodes_per_round": 1, "round_epochs": 1}  # fmt: skip
+    per_sample = FrameStore.bytes_per_sample(2, 48, 64)
+    steps = get_task("LiftCube-v0").max_episode_steps
+    small = (3 * steps + 10) * per_sample / 2**30  # room for 3 episodes: 2 demos, 1 round
+    # The user's own demonstrations are never lowered: over the bound, refused.
+    with pytest.raises(ValueError, match="over max_memory_gb"):
+        train_imitation("dagger", "lift", tmp_path / "mine", env=env, eval_episodes=1,
+                        hyperparams={**tiny, "demos": 3, "max_memory_gb": small})  # fmt: skip
+    assert not (tmp_path / "mine").exists()
+    with pytest.warns(UserWarning, match="300 demonstrations would pass.*gathering 2"):
+        train_imitation("dagger", "lift", tmp_path / "lowered", env=env, eval_episodes=1,
+                        hyperparams={**tiny, "max_memory_gb": small})  # fmt: skip
+    settings = json.loads((tmp_path / "lowered" / "settings.json").read_text())
+    assert settings["recipe"]["algo"]["demos"] == 2
+    assert settings["env"]["visual_randomization"] == "light"
 
 
 def test_command_map_gives_the_action_that_holds_the_joints_where_they_are():
