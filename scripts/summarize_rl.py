@@ -2,7 +2,9 @@
 
     python scripts/summarize_rl.py runs --json docs/rl_baselines.json --plot docs/rl_curves.png
 
-Groups the folders by (algorithm, task); per group: the protocol success of each seed
+Groups the folders by (algorithm, task, variant), the variant being what a folder's name
+adds to the algorithm, the task and the seed (``dagger_PickColoredCube-v0_wide_s0``:
+``wide``; none for ``<task>/seed<k>``); per group: the protocol success of each seed
 (``protocol.json`` from ``python -m gym_soarm.evaluate``, else the curve's last row),
 their mean, min and max, the environment steps and wall time of each run, and the first
 wall time at which a run's curve reached 95 %. The plot draws each group's mean success
@@ -14,6 +16,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import re
 import statistics
 from collections import defaultdict
 from pathlib import Path
@@ -24,14 +27,22 @@ def _curve(folder: Path) -> list[dict[str, float]]:
         return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(stream)]
 
 
+def _variant(folder: Path, algo: str, task: str) -> str:
+    """What the folder's name adds to the algorithm, the task and the seed."""
+    stem = re.sub(r"_?(?:s|seed)\d+$", "", folder.name) or folder.parent.name
+    return stem.replace(task, "").replace(f"{algo}_", "", 1).strip("_")
+
+
 def summarize(root: Path) -> dict[str, dict]:
-    groups: dict[tuple[str, str], list[Path]] = defaultdict(list)
+    groups: dict[tuple[str, str, str], list[Path]] = defaultdict(list)
     for settings_path in sorted(root.rglob("settings.json")):
         settings = json.loads(settings_path.read_text())
-        if (settings_path.parent / "curve.csv").is_file():
-            groups[(settings["algo"], settings["task"])].append(settings_path.parent)
+        folder = settings_path.parent
+        if (folder / "curve.csv").is_file():
+            algo, task = settings["algo"], settings["task"]
+            groups[(algo, task, _variant(folder, algo, task))].append(folder)
     summary = {}
-    for (algo, task), folders in sorted(groups.items()):
+    for (algo, task, variant), folders in sorted(groups.items()):
         seeds = []
         for folder in folders:
             settings = json.loads((folder / "settings.json").read_text())
@@ -55,9 +66,10 @@ def summarize(root: Path) -> dict[str, dict]:
                 }
             )
         rates = [s["success_rate"] for s in seeds]
-        summary[f"{algo}/{task}"] = {
+        summary[f"{algo}/{task}" + (f"/{variant}" if variant else "")] = {
             "algo": algo,
             "task": task,
+            "variant": variant,
             "seeds": seeds,
             "success_mean": statistics.fmean(rates),
             "success_min": min(rates),
@@ -82,7 +94,8 @@ def plot(root: Path, summary: dict[str, dict], path: Path) -> None:
         rates = np.array([[100 * row["success_rate"] for row in c[:n]] for c in curves])
         steps = np.array([row["env_steps"] for row in curves[0][:n]])
         minutes = np.mean([[row["wall_s"] / 60 for row in c[:n]] for c in curves], axis=0)
-        label = f"{group['algo'].upper()} {group['task']} ({len(curves)} seeds)"
+        variant = f" {group['variant']}" if group.get("variant") else ""
+        label = f"{group['algo'].upper()} {group['task']}{variant} ({len(curves)} seeds)"
         for axis, x in ((left, steps), (right, minutes)):
             # Markers, so that a one-row curve (a BC run: one evaluation) shows too.
             (line,) = axis.plot(x, rates.mean(axis=0), marker="o", markersize=4, label=label)
