@@ -68,6 +68,13 @@ class StateExpertConfig(GraspFigures):
     """The same once below the hover height (so that a descent is not broken off)."""
     arrived_m: float = 0.002
     """Distance to the grasp point (commanded and measured) at which the jaws close."""
+    open_pads_m: tuple[float, float] = (-0.0165, 0.054)
+    """Where the fixed and the moving jaw pad sit along the closing axis from
+    ``grasp_center`` with the jaws open (the model's figures)."""
+    pad_clear_m: float = 0.032
+    """Horizontal distance from a pad to another object's centre that counts as clear
+    when choosing the face to grasp (the cube's half diagonal, 21 mm, plus the pad's
+    half width and a few millimetres)."""
     missed_gripper_rad: float = 0.05
     """A measured gripper angle under this, with the jaws commanded shut, is a miss."""
     over_target_m: float = 0.008
@@ -426,7 +433,8 @@ class GraspExpert(StateExpert):
         low = site[2] < c.hover_height_m - 0.01
         horizontal = float(np.hypot(*(site[:2] - obj[:2])))
         near = horizontal < 0.03 and low
-        grasp_yaw = self.best_yaw(grasp, self.grasp_yaws(name), yaw if near else None)
+        yaws = self.clear_yaws(name, grasp, self.grasp_yaws(name))
+        grasp_yaw = self.best_yaw(grasp, yaws, yaw if near else None)
         closing_axis = downward_rotation(grasp_yaw)[:, 0]
         grasp = grasp - c.fixed_jaw_clearance_m * closing_axis
         hover = grasp.copy()
@@ -464,6 +472,24 @@ class GraspExpert(StateExpert):
         if float(np.linalg.norm(site - hover)) > 0.02:
             return Move("joint", hover, grasp_yaw, c.gripper_open_rad, stage="approach")
         return Move("line", hover, grasp_yaw, c.gripper_open_rad, stage="align")
+
+    def clear_yaws(self, name: str, grasp: np.ndarray, yaws: list[float]) -> list[float]:
+        """Of ``yaws``, those at which the open jaws come down on ``name`` clear of the
+        scene's other objects (both pads over ``pad_clear_m`` from each one's centre); all
+        of ``yaws`` when none is, or when ``name`` is alone."""
+        physics = self.physics
+        others = [physics.object_position(o)[:2] for o in physics.object_names if o != name]
+        if not others:
+            return yaws
+        c = self.config
+        clear = []
+        for yaw in yaws:
+            axis = np.array([math.cos(yaw), math.sin(yaw)])
+            centre = grasp[:2] - c.fixed_jaw_clearance_m * axis
+            pads = [centre + along * axis for along in c.open_pads_m]
+            if all(np.hypot(*(pad - other)) > c.pad_clear_m for pad in pads for other in others):
+                clear.append(yaw)
+        return clear or yaws
 
     # --- held-object motions ------------------------------------------------------------
     def held_offset(self, name: str) -> np.ndarray:

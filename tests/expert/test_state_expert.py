@@ -87,6 +87,41 @@ def test_asking_the_expert_changes_nothing():
         env.close()
 
 
+def test_the_jaws_come_down_on_a_face_that_clears_the_other_cubes():
+    # Seed 66 of pick the named cube puts another cube where the open moving jaw of the
+    # least-roll face would land; the expert grasps from a face whose pads clear it and
+    # finishes (with that face it pressed on the other cube until the step limit).
+    env = _env("PickColoredCube-v0")
+    try:
+        expert = make_expert(env)
+        env.reset(seed=66)
+        physics, c = env.unwrapped.physics, expert.config
+        name = expert.grasp_object()
+        grasp = physics.object_position(name)
+        yaws = expert.grasp_yaws(name)
+        clear = expert.clear_yaws(name, grasp, yaws)
+        assert 0 < len(clear) < len(yaws)
+        others = [physics.object_position(o)[:2] for o in physics.object_names if o != name]
+        for yaw in yaws:
+            axis = np.array([np.cos(yaw), np.sin(yaw)])
+            centre = grasp[:2] - c.fixed_jaw_clearance_m * axis
+            gaps = [np.hypot(*(centre + a * axis - o)) for a in c.open_pads_m for o in others]
+            assert (min(gaps) > c.pad_clear_m) == (yaw in clear)
+        assert run_episode(env, expert, 66, None).success
+    finally:
+        env.close()
+    lone = _env("LiftCube-v0")
+    try:
+        expert = make_expert(lone)
+        lone.reset(seed=0)
+        yaws = expert.grasp_yaws("cube")
+        assert (
+            expert.clear_yaws("cube", lone.unwrapped.physics.object_position("cube"), yaws) == yaws
+        )
+    finally:
+        lone.close()
+
+
 @pytest.mark.parametrize("task", GRASP_TASKS)
 def test_the_expert_finishes_from_perturbed_states(task):
     results = evaluate_perturbed(task, episodes=1)
