@@ -55,7 +55,9 @@ from __future__ import annotations
 import copy
 from typing import Any
 
+from gym_soarm.sim.randomization import LEVELS
 from gym_soarm.tasks import lift_cube, reach_target
+from gym_soarm.validation import check_choice
 
 ALGORITHMS: tuple[str, ...] = ("ppo", "sac")
 """The reinforcement-learning algorithms of :func:`gym_soarm.rl.training.train`."""
@@ -195,7 +197,10 @@ DRAWN_LOOKS = "drawn looks"
 """The row of a pixel recipe used where ``visual_randomization`` draws the looks (lights,
 colours, cameras) at every reset: merged over the default and under the task's row. DAgger
 doubles its demonstrations there: each look is seen less, and 150 demonstrations left Lift
-at 62 % under light where 300 reached 95 % (``docs/learning.md``)."""
+at 62 % under light where 300 reached 95 % (``docs/learning.md``). On a task whose 300
+episodes and rounds would pass ``max_memory_gb`` the run gathers as many as fit, never
+fewer than without the row (:func:`gym_soarm.rl.pixels.demos_within_store`: 170 on a
+400-step task)."""
 
 _PIXEL_ENV: dict[str, Any] = {
     "obs_type": "pixels_agent_pos",
@@ -285,6 +290,7 @@ def pixel_recipe(algo: str, task: str, visual_randomization: str = "none") -> di
         ValueError: ``algo`` is not one of :data:`IMITATION`.
     """
     refusal = f"a pixel student trains with {', '.join(IMITATION)}; got {algo!r}. Pass --algo bc."
+    check_choice("visual_randomization", visual_randomization, LEVELS)
     rows = (DRAWN_LOOKS,) if visual_randomization != "none" else ()
     return _merged(_algo_table(PIXEL_HYPERPARAMS, algo, refusal), task, rows)
 

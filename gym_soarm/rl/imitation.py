@@ -347,8 +347,9 @@ def train_imitation(
     require_sb3()
     pyplot()
     if pixels:
-        if "demos" not in (hyperparams or {}):
-            demos_within_store(algo, spec, settings)
+        if looks != "none" and "demos" not in (hyperparams or {}):
+            floor = pixel_recipe(algo, spec.name)["algo"]["demos"]
+            demos_within_store(algo, spec, settings, floor)
         store_bound(algo, spec, settings)  # a ValueError before the folder is made
     folder = RunFolder(out_path, "").prepare(
         (MODEL_FILE, NORMALIZE_FILE, DEMOS_FILE, PIXEL_MODEL_FILE)

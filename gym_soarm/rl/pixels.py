@@ -35,6 +35,7 @@ DAgger keeps the round that scored best on the protocol.
 from __future__ import annotations
 
 import logging
+import math
 import os
 import warnings
 from collections.abc import Mapping, Sequence
@@ -469,22 +470,25 @@ def worst_case_samples(algo: str, params: Mapping[str, Any], max_episode_steps: 
     return episodes * max_episode_steps
 
 
-def demos_within_store(algo: str, spec: Any, settings: dict[str, Any]) -> None:
-    """Lower the recipe's ``demos`` to as many episodes as ``max_memory_gb`` holds beside
-    the rounds' episodes, each counted at its step limit (the :data:`DRAWN_LOOKS
-    <gym_soarm.rl.hyperparams.DRAWN_LOOKS>` row's 300 on a 400-step task); a warning says
-    so. A ``demos`` the user passed, or a run whose rounds alone pass the bound, is left
-    for :func:`store_bound` to refuse."""
+def demos_within_store(algo: str, spec: Any, settings: dict[str, Any], floor: int) -> None:
+    """Lower the recipe's ``demos`` towards ``floor`` (the recipe's own without the
+    :data:`DRAWN_LOOKS <gym_soarm.rl.hyperparams.DRAWN_LOOKS>` row), to as many episodes
+    as ``max_memory_gb`` holds beside the rounds' episodes, each counted at its step limit
+    (the row's 300 on a 400-step task: 170); a warning says so. Never below ``floor``: a
+    run that does not fit then is left for :func:`store_bound` to refuse, as is a
+    ``demos`` the user passed (the caller does not lower that)."""
     params = settings["algo"]
     rounds = params["rounds"] * params["episodes_per_round"] if algo == "dagger" else 0
-    _, _, _, _, _, budget = store_bound(algo, spec, settings, check=False)
-    fits = budget // spec.max_episode_steps - rounds
-    if 1 <= fits < params["demos"]:
+    _, _, _, per_sample, _, budget = store_bound(algo, spec, settings, check=False)
+    fits = max(budget // spec.max_episode_steps - rounds, floor)
+    if fits < params["demos"]:
+        needed = (params["demos"] + rounds) * spec.max_episode_steps * per_sample / 2**30
         warnings.warn(
-            f"the recipe's {params['demos']} demonstrations would pass max_memory_gb="
-            f"{params['max_memory_gb']} on {spec.name}; gathering {fits}. Pass --hyperparams "
-            "max_memory_gb=N to keep them.",
-            stacklevel=2,
+            f"the recipe's {params['demos']} demonstrations under drawn looks would pass "
+            f"max_memory_gb={params['max_memory_gb']} on {spec.name}; gathering {fits}. "
+            f"To keep them pass max_memory_gb={math.ceil(needed)} (--hyperparams "
+            f"max_memory_gb={math.ceil(needed)}), or demos=N to choose.",
+            stacklevel=3,
         )
         params["demos"] = fits
 

@@ -70,7 +70,7 @@ class StateExpertConfig(GraspFigures):
     """Distance to the grasp point (commanded and measured) at which the jaws close."""
     open_pads_m: tuple[float, float] = (-0.0165, 0.054)
     """Where the fixed and the moving jaw pad sit along the closing axis from
-    ``grasp_center`` with the jaws open (the model's figures)."""
+    ``grasp_center`` with the jaws open at ``gripper_open_rad`` (the model's figures)."""
     pad_clear_m: float = 0.032
     """Horizontal distance from a pad to another object's centre that counts as clear
     when choosing the face to grasp (the cube's half diagonal, 21 mm, plus the pad's
@@ -86,6 +86,18 @@ class StateExpertConfig(GraspFigures):
         super().__post_init__()
         speeds = ("_speed_rad", "_speed_m", "_accel_rad")
         check_dataclass_fields(self, lambda name: name.endswith(speeds), check_positive)
+        check_positive("pad_clear_m", self.pad_clear_m)
+        pads = self.open_pads_m
+        if (
+            not isinstance(pads, tuple)
+            or len(pads) != 2
+            or not all(isinstance(x, (int, float)) and math.isfinite(x) for x in pads)
+            or not pads[0] < 0.0 < pads[1]
+        ):
+            raise ValueError(
+                "open_pads_m must be (fixed, moving) metres along the closing axis with "
+                f"fixed < 0 < moving; got {pads!r}. Pass e.g. open_pads_m=(-0.0165, 0.054)."
+            )
 
     def at_rate(self, control_hz: float) -> StateExpertConfig:
         """The same motion in time at ``control_hz``: speeds a step scaled by 50 / hz,

@@ -176,48 +176,50 @@ def test_the_default_pixel_dagger_recipe_fits_its_memory_bound(task):
 @pytest.mark.parametrize("task", [t for t in BUILTIN_TASKS if get_task(t).max_episode_steps <= 400])
 def test_drawn_looks_double_the_demonstrations_within_the_memory_bound(task):
     # Under light or heavy looks the DAgger recipe gathers 300 demonstrations where the
-    # default gathers 150, as many as max_memory_gb holds on the longer tasks (a warning).
+    # default gathers 150, as many as max_memory_gb holds on the longer tasks (a warning),
+    # never fewer than without the looks.
     plain = pixel_recipe("dagger", task)
+    floor = plain["algo"]["demos"]
     for looks in ("light", "heavy"):
         settings = check_pixel_settings("dagger", pixel_recipe("dagger", task, looks))
         demos = settings["algo"]["demos"]
-        assert demos == (plain["algo"]["demos"] if task == "ReachTarget-v0" else 300)
+        assert demos == (floor if task == "ReachTarget-v0" else 300)
         spec = get_task(task)
         *_, budget = store_bound("dagger", spec, settings, check=False)
-        over = budget // spec.max_episode_steps < demos + 120
+        fits = budget // spec.max_episode_steps - 120
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            demos_within_store("dagger", spec, settings)
-        assert [str(w.message) for w in caught if "max_memory_gb" in str(w.message)] == (
-            [f"the recipe's 300 demonstrations would pass max_memory_gb=8.0 on {task}; "
-             f"gathering {settings['algo']['demos']}. Pass --hyperparams max_memory_gb=N "
-             "to keep them."] if over else []
-        )  # fmt: skip
-        assert (settings["algo"]["demos"] < demos) == over
+            demos_within_store("dagger", spec, settings, floor)
+        messages = [str(w.message) for w in caught if "max_memory_gb" in str(w.message)]
+        assert settings["algo"]["demos"] == min(demos, max(fits, floor))
+        assert len(messages) == (fits < demos)
+        if messages:
+            assert f"gathering {settings['algo']['demos']}. To keep them pass " in messages[0]
         *_, worst, budget = store_bound("dagger", spec, settings)
         assert worst <= budget
     assert pixel_recipe("bc", task, "light") == pixel_recipe("bc", task)
+    with pytest.raises(ValueError, match="visual_randomization must be one of"):
+        pixel_recipe("dagger", task, "Light")
 
 
-def test_a_light_run_lowers_only_the_recipes_demonstrations_to_its_memory_bound(tmp_path):
+def test_only_the_drawn_looks_demonstrations_are_lowered_never_a_users(tmp_path):
+    # Everything here is refused before anything is gathered or written.
     env = {"obs_type": "pixels_agent_pos", "camera_config": "front_wrist",
-           "observation_height": 48, "observation_width": 64, "visual_randomization": "light"}  # fmt: skip
-    tiny = {"epochs": 1, "batch_size": 32, "channels": [4, 4, 4, 4], "hidden": [16],
-            "rounds": 1, "episodes_per_round": 1, "round_epochs": 1}  # fmt: skip
+           "observation_height": 48, "observation_width": 64}  # fmt: skip
     per_sample = FrameStore.bytes_per_sample(2, 48, 64)
     steps = get_task("LiftCube-v0").max_episode_steps
-    small = (3 * steps + 10) * per_sample / 2**30  # room for 3 episodes: 2 demos, 1 round
-    # The user's own demonstrations are never lowered: over the bound, refused.
-    with pytest.raises(ValueError, match="over max_memory_gb"):
-        train_imitation("dagger", "lift", tmp_path / "mine", env=env, eval_episodes=1,
-                        hyperparams={**tiny, "demos": 3, "max_memory_gb": small})  # fmt: skip
-    assert not (tmp_path / "mine").exists()
-    with pytest.warns(UserWarning, match="300 demonstrations would pass.*gathering 2"):
-        train_imitation("dagger", "lift", tmp_path / "lowered", env=env, eval_episodes=1,
-                        hyperparams={**tiny, "max_memory_gb": small})  # fmt: skip
-    settings = json.loads((tmp_path / "lowered" / "settings.json").read_text())
-    assert settings["recipe"]["algo"]["demos"] == 2
-    assert settings["env"]["visual_randomization"] == "light"
+    small = (200 * steps) * per_sample / 2**30  # room for 200 episodes: 150 + 6 x 20 do not fit
+    light = {**env, "visual_randomization": "light"}
+    cases = [
+        (light, {"demos": 3, "rounds": 10, "max_memory_gb": small / 20}),  # the user's demos
+        (light, {"max_memory_gb": small}),  # lowered from 300, but not below 150: refused
+        (env, {"rounds": 14, "max_memory_gb": small}),  # no drawn looks: never lowered
+    ]
+    for k, (keywords, hyperparams) in enumerate(cases):
+        with pytest.raises(ValueError, match="over max_memory_gb"):
+            train_imitation("dagger", "lift", tmp_path / str(k), env=keywords,
+                            hyperparams=hyperparams)  # fmt: skip
+        assert not (tmp_path / str(k)).exists()
 
 
 def test_command_map_gives_the_action_that_holds_the_joints_where_they_are():
