@@ -478,11 +478,11 @@ def demos_within_store(algo: str, spec: Any, settings: dict[str, Any], floor: in
     run that does not fit then is left for :func:`store_bound` to refuse, as is a
     ``demos`` the user passed (the caller does not lower that)."""
     params = settings["algo"]
-    rounds = params["rounds"] * params["episodes_per_round"] if algo == "dagger" else 0
-    _, _, _, per_sample, _, budget = store_bound(algo, spec, settings, check=False)
+    _, _, _, per_sample, worst, budget = store_bound(algo, spec, settings, check=False)
+    rounds = worst // spec.max_episode_steps - params["demos"]  # the rounds' episodes
     fits = max(budget // spec.max_episode_steps - rounds, floor)
     if fits < params["demos"]:
-        needed = (params["demos"] + rounds) * spec.max_episode_steps * per_sample / 2**30
+        needed = worst * per_sample / 2**30
         warnings.warn(
             f"the recipe's {params['demos']} demonstrations under drawn looks would pass "
             f"max_memory_gb={params['max_memory_gb']} on {spec.name}; gathering {fits}. "
