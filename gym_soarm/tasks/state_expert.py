@@ -56,6 +56,10 @@ class StateExpertConfig(GraspFigures):
     """Fastest change of an arm joint's target per step."""
     joint_accel_rad: float = 0.02
     """Largest change of that speed per step (over the joint's measured speed)."""
+    relax_speed_rad: float = 0.15
+    """Fastest change of an arm joint's target per step back towards the measured joints,
+    where the targets were left deep in an obstacle or flung away (a shove): the arm is
+    already there, so this moves nothing but the targets."""
     line_speed_m: float = 0.003
     """Fastest straight-line move of the jaws per step (descend, lift, lower)."""
     carry_speed_m: float = 0.004
@@ -108,6 +112,7 @@ class StateExpertConfig(GraspFigures):
         return dataclasses.replace(
             self,
             joint_speed_rad=self.joint_speed_rad * k,
+            relax_speed_rad=self.relax_speed_rad * k,
             joint_accel_rad=self.joint_accel_rad * k * k,
             line_speed_m=self.line_speed_m * k,
             carry_speed_m=self.carry_speed_m * k,
@@ -293,16 +298,17 @@ class StateExpert:
 
     def relaxed(self, arm: np.ndarray) -> np.ndarray:
         """The arm's targets ``arm`` moved towards its measured joints, at most
-        ``joint_speed_rad`` a step (all joints covering the same fraction of the way).
+        ``relax_speed_rad`` a step (all joints covering the same fraction of the way).
 
         The arm is already there, so this is no acceleration to limit: targets left deep
         in an obstacle come back to it quickly and the arm stops pressing.
         """
         error = self.physics.joint_angles()[:_N_ARM] - arm
         size = float(np.abs(error).max())
-        if size <= self.config.joint_speed_rad:
+        limit = self.config.relax_speed_rad
+        if size <= limit:
             return arm + error
-        return arm + error * (self.config.joint_speed_rad / size)
+        return arm + error * (limit / size)
 
     def _line_step(self, move: Move, arm: np.ndarray) -> np.ndarray:
         """The joints one straight-line step of the jaws towards ``move.position``."""
@@ -426,11 +432,12 @@ class GraspExpert(StateExpert):
                 return self.transport(name, commanded, site, yaw)
             if gripper_command <= gripper_measured + 0.02:  # closing on it: finish
                 return Move("hold", None, yaw, c.gripper_closed_rad, stage="close")
-        return self.approach(name, site, yaw, gripper_command, gripper_measured)
+        return self.approach(name, commanded, site, yaw, gripper_command, gripper_measured)
 
     def approach(
         self,
         name: str,
+        commanded: np.ndarray,
         site: np.ndarray,
         yaw: float,
         gripper_command: float,
@@ -478,9 +485,7 @@ class GraspExpert(StateExpert):
                 return Move("hold", None, grasp_yaw, c.gripper_closed_rad, stage="close")
             return Move("line", grasp, grasp_yaw, c.gripper_open_rad, stage="descend")
         if low and not aligned:
-            up = site.copy()
-            up[2] = hover[2]
-            return Move("line", up, yaw, c.gripper_open_rad, speed_m=0.004, stage="rise")
+            return self.rise(commanded, hover[2], c.gripper_open_rad, yaw)
         if float(np.linalg.norm(site - hover)) > 0.02:
             return Move("joint", hover, grasp_yaw, c.gripper_open_rad, stage="approach")
         return Move("line", hover, grasp_yaw, c.gripper_open_rad, stage="align")

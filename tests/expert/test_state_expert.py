@@ -42,6 +42,8 @@ def test_make_expert_gives_state_experts_and_the_script_on_request():
             make_expert(env, {"line_speed_m": 0.002})
         with pytest.raises(ValueError, match="joint_speed_rad must be a number > 0"):
             StateExpertConfig(joint_speed_rad=0.0)
+        with pytest.raises(ValueError, match="relax_speed_rad must be a number > 0"):
+            StateExpertConfig(relax_speed_rad=-0.1)
     finally:
         env.close()
 
@@ -120,6 +122,31 @@ def test_the_jaws_come_down_on_a_face_that_clears_the_other_cubes():
         )
     finally:
         lone.close()
+
+
+def test_jaws_left_stretched_out_at_the_table_rise_towards_home_and_the_grasp_follows():
+    # A shove can leave the jaws pointing out, 40 cm from the pan axis, at the table;
+    # a straight line up barely moves them there (they stayed at the table for 300
+    # steps), so the expert rises towards the home posture first, then grasps.
+    env = _env("LiftCube-v0")
+    try:
+        base = env.unwrapped
+        obs, info = env.reset(seed=0)
+        stretched = np.array([0.43, 1.14, -0.16, -0.88, 2.03, 0.8])
+        for _ in range(40):
+            commanded = np.asarray(base.commanded_targets)
+            obs, *_, info = env.step(base.control.action_for_targets(stretched, commanded))
+        assert base.physics.grasp_center()[2] < 0.03
+        expert = make_expert(env)
+        obs, *_, info = env.step(expert(obs, info))
+        assert expert.stage == "rise"
+        for _ in range(200):
+            obs, _, terminated, truncated, info = env.step(expert(obs, info))
+            if terminated or truncated:
+                break
+        assert info["is_success"]
+    finally:
+        env.close()
 
 
 @pytest.mark.parametrize("task", GRASP_TASKS)
