@@ -37,7 +37,6 @@ import numpy as np
 from gym_soarm import constants
 from gym_soarm.sim.arrays import Array, SimArrays
 from gym_soarm.sim.arrays import namespace as sim_namespace
-from gym_soarm.sim.kinematics import downward_rotation
 from gym_soarm.sim.objects import Fixture, Scene, SceneObject, open_box_geoms
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.tasks import placement
@@ -224,39 +223,11 @@ class PutCubesInBoxExpert(OneAfterAnother, OverRimExpert):
         return _drop_point(self.env.physics, self._current)
 
 
-JAW_REACH_M: tuple[float, float] = (-0.015, 0.06)
-"""Where the open jaws reach along their closing axis from a grasp point (m): the fixed
-jaw just behind it, the moving jaw swung out ahead."""
-JAW_CLEARANCE_M = 0.03
-"""The distance from the open jaws' line within which another cube is in their way."""
-
-
 class PutCubesInBoxStateExpert(OverRimStateExpert):
     """From the state: the first cube outside the box is picked, carried over the rim
-    and let go on its own quarter of the floor; of a cube's four grasp yaws, those whose
-    open jaws come down clear of the other cubes."""
+    and let go on its own quarter of the floor."""
 
     rim_z_m = BOX_RIM_Z_M
-
-    def grasp_yaws(self, name: str) -> list[float]:
-        yaws = super().grasp_yaws(name)
-        here = self.physics.object_position(name)[:2]
-        others = [
-            self.physics.object_position(cube_name(c))[:2] - here
-            for c in COLOURS
-            if cube_name(c) != name
-        ]
-
-        def clearance(yaw: float) -> float:
-            axis = downward_rotation(yaw)[:2, 0]
-            axis = axis / np.linalg.norm(axis)
-            return min(
-                float(np.linalg.norm(other - np.clip(other @ axis, *JAW_REACH_M) * axis))
-                for other in others
-            )
-
-        clear = [yaw for yaw in yaws if clearance(yaw) > JAW_CLEARANCE_M]
-        return clear or [max(yaws, key=clearance)]
 
     def grasp_object(self) -> str:
         outside = self.env.task_logic.outside(self.physics)

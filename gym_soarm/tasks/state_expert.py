@@ -492,21 +492,22 @@ class GraspExpert(StateExpert):
 
     def clear_yaws(self, name: str, grasp: np.ndarray, yaws: list[float]) -> list[float]:
         """Of ``yaws``, those at which the open jaws come down on ``name`` clear of the
-        scene's other objects (both pads over ``pad_clear_m`` from each one's centre); all
-        of ``yaws`` when none is, or when ``name`` is alone."""
+        scene's other objects (both pads over ``pad_clear_m`` from each one's centre);
+        when none is, the one leaving the most room; all of them when ``name`` is alone."""
         physics = self.physics
         others = [physics.object_position(o)[:2] for o in physics.object_names if o != name]
         if not others:
             return yaws
         c = self.config
-        clear = []
-        for yaw in yaws:
+
+        def room(yaw: float) -> float:
             axis = np.array([math.cos(yaw), math.sin(yaw)])
             centre = grasp[:2] - c.fixed_jaw_clearance_m * axis
             pads = [centre + along * axis for along in c.open_pads_m]
-            if all(np.hypot(*(pad - other)) > c.pad_clear_m for pad in pads for other in others):
-                clear.append(yaw)
-        return clear or yaws
+            return min(float(np.hypot(*(pad - other))) for pad in pads for other in others)
+
+        clear = [yaw for yaw in yaws if room(yaw) > c.pad_clear_m]
+        return clear or [max(yaws, key=room)]
 
     # --- held-object motions ------------------------------------------------------------
     def held_offset(self, name: str) -> np.ndarray:
