@@ -293,11 +293,13 @@ def test_the_imitation_recipes_are_complete():
             assert settings["env"] == recipe("ppo", "ReachTarget-v0")["env"]
             assert set(row) <= set(HYPERPARAMS[algo]["default"]), (algo, task)
     assert set(recipe("bc", "LiftCube-v0")["algo"]) < set(recipe("dagger", "LiftCube-v0")["algo"])
-    # Stack's row doubles the demonstrations and keeps the rest of the recipe.
+    # Stack's and push's rows double the demonstrations and keep the rest of the recipe.
     for algo in IMITATION:
-        stack, lift = recipe(algo, "StackCube-v0"), recipe(algo, "LiftCube-v0")
-        assert (stack["algo"]["demos"], lift["algo"]["demos"]) == (400, 200)
-        assert {**stack["algo"], "demos": 200} == lift["algo"]
+        lift = recipe(algo, "LiftCube-v0")
+        for task in ("StackCube-v0", "PushCube-v0"):
+            twice = recipe(algo, task)
+            assert (twice["algo"]["demos"], lift["algo"]["demos"]) == (400, 200)
+            assert {**twice["algo"], "demos": 200} == lift["algo"]
 
 
 @pytest.mark.subprocess
