@@ -261,7 +261,8 @@ UPRIGHT_DEG = 8.0
 """A held cylinder within this tilt of vertical is set down on the table."""
 LYING_CARRY_SPEEDUP = 2.0
 """A held lying cylinder goes out to the stand point at this many times ``carry_speed_m``:
-the stand-up and the second grasp after it take about 180 of the task's 400 steps."""
+the stand-up (about 150 steps, 60-70 of them this carry) and the second grasp after it
+take about 200 of the task's 400 steps."""
 _N_ARM_JOINTS = len(constants.ARM_JOINT_NAMES)
 
 

@@ -19,7 +19,8 @@ Speeds: the arm's targets move at most ``joint_speed_rad`` per step and change t
 by at most ``joint_accel_rad`` per step, measured against the joints' current velocity,
 and brake in time to stop at the goal; straight-line moves
 of the jaws go at most ``line_speed_m`` per step; the gripper's target at most
-``gripper_speed_rad``.
+``gripper_speed_rad``. Targets left far from the joints (pressed into the table, flung by
+a shove) come back to them at up to ``relax_speed_rad``: the arm is already there.
 """
 
 from __future__ import annotations

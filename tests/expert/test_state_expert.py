@@ -150,13 +150,31 @@ def test_jaws_left_stretched_out_at_the_table_rise_towards_home_and_the_grasp_fo
             obs, *_, info = env.step(base.control.action_for_targets(stretched, commanded))
         assert base.physics.grasp_center()[2] < 0.03
         expert = make_expert(env)
-        obs, *_, info = env.step(expert(obs, info))
-        assert expert.stage == "rise"
+        kinds = []
         for _ in range(200):
+            kinds.append(expert.decide(np.asarray(base.commanded_targets)).kind)
             obs, _, terminated, truncated, info = env.step(expert(obs, info))
             if terminated or truncated:
                 break
+        assert "posture" in kinds[:20], kinds[:20]
         assert info["is_success"]
+    finally:
+        env.close()
+
+
+def test_targets_far_from_the_joints_come_back_at_the_relax_speed():
+    env = _env("LiftCube-v0")
+    try:
+        env.reset(seed=0)
+        measured = env.unwrapped.physics.joint_angles()[:5]
+        flung = measured + np.array([1.0, -0.5, 0.0, 0.2, 0.0])
+        for hz, expected in ((50, 0.15), (30, 0.25)):
+            expert = make_expert(env, StateExpertConfig().at_rate(hz))
+            step = expert.relaxed(flung) - flung
+            np.testing.assert_allclose(np.abs(step).max(), expected)
+            np.testing.assert_allclose(step / np.abs(step).max(), (measured - flung) / 1.0)
+        near = measured + 0.1  # within one step: there at once
+        np.testing.assert_allclose(make_expert(env).relaxed(near), measured)
     finally:
         env.close()
 
