@@ -104,23 +104,20 @@ def test_the_jaws_come_down_on_a_face_that_clears_the_other_cubes():
         clear = expert.clear_yaws(name, grasp, yaws)
         assert 0 < len(clear) < len(yaws)
         others = [physics.object_position(o)[:2] for o in physics.object_names if o != name]
-        for yaw in yaws:
+
+        def room(yaw):  # the nearest any open pad comes to another cube's centre
             axis = np.array([np.cos(yaw), np.sin(yaw)])
             centre = grasp[:2] - c.fixed_jaw_clearance_m * axis
-            gaps = [np.hypot(*(centre + a * axis - o)) for a in c.open_pads_m for o in others]
-            assert (min(gaps) > c.pad_clear_m) == (yaw in clear)
+            return min(np.hypot(*(centre + a * axis - o)) for a in c.open_pads_m for o in others)
+
+        for yaw in yaws:
+            assert (room(yaw) > c.pad_clear_m) == (yaw in clear)
         assert run_episode(env, expert, 66, None).success
         # No face clear (every pad within a metre of a cube): the one with the most room.
         crowded = make_expert(env, StateExpertConfig(pad_clear_m=1.0))
         env.reset(seed=66)
         grasp = physics.object_position(name)
         (only,) = crowded.clear_yaws(name, grasp, yaws)
-
-        def room(yaw):
-            axis = np.array([np.cos(yaw), np.sin(yaw)])
-            centre = grasp[:2] - c.fixed_jaw_clearance_m * axis
-            return min(np.hypot(*(centre + a * axis - o)) for a in c.open_pads_m for o in others)
-
         assert room(only) == max(room(yaw) for yaw in yaws) and len(set(map(room, yaws))) > 1
     finally:
         env.close()
