@@ -96,14 +96,16 @@ def check_number(
     return float(value)
 
 
-def check_positive(name: str, value: Any) -> float:
-    """``value`` as a float > 0 (bools are not numbers here; inf is allowed)."""
+def check_positive(name: str, value: Any, *, fix: str = "") -> float:
+    """``value`` as a float > 0 (bools are not numbers here; inf is allowed); ``fix``
+    ends the message (default: a positive example of ``name``)."""
+    fix = f" {fix or f'Pass a number > 0, e.g. {name}=1.0.'}"
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ArgumentTypeError(
-            f"{name} must be a number > 0; got {value!r} ({type(value).__name__})."
+            f"{name} must be a number > 0; got {value!r} ({type(value).__name__}).{fix}"
         )
     if not value > 0:
-        raise ValueError(f"{name} must be a number > 0; got {value!r}.")
+        raise ValueError(f"{name} must be a number > 0; got {value!r}.{fix}")
     return float(value)
 
 

@@ -90,8 +90,13 @@ class StateExpertConfig(GraspFigures):
     def __post_init__(self) -> None:
         super().__post_init__()
         speeds = ("_speed_rad", "_speed_m", "_accel_rad")
-        check_dataclass_fields(self, lambda name: name.endswith(speeds), check_positive)
-        check_positive("pad_clear_m", self.pad_clear_m)
+        defaults = {field.name: field.default for field in dataclasses.fields(self)}
+
+        def positive(name: str, value: Any) -> None:
+            check_positive(name, value, fix=f"Pass e.g. {name}={defaults[name]!r} (the default).")
+
+        check_dataclass_fields(self, lambda name: name.endswith(speeds), positive)
+        positive("pad_clear_m", self.pad_clear_m)
         pads = self.open_pads_m
         if (
             not isinstance(pads, tuple)

@@ -42,8 +42,9 @@ def test_make_expert_gives_state_experts_and_the_script_on_request():
             make_expert(env, {"line_speed_m": 0.002})
         with pytest.raises(ValueError, match="joint_speed_rad must be a number > 0"):
             StateExpertConfig(joint_speed_rad=0.0)
-        with pytest.raises(ValueError, match="relax_speed_rad must be a number > 0"):
+        with pytest.raises(ValueError, match="relax_speed_rad must be a number > 0") as error:
             StateExpertConfig(relax_speed_rad=-0.1)
+        assert "Pass e.g. relax_speed_rad=0.15 (the default)" in str(error.value)
     finally:
         env.close()
 
