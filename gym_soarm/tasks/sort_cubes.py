@@ -31,6 +31,7 @@ rising straight up, open, after each release.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
@@ -271,6 +272,19 @@ class SortCubesStateExpert(PlaceStateExpert):
         colour = next(c for c in COLOURS if cube_name(c) == name)
         pad = self.physics.fixture_position(pad_name(colour))
         return np.array([pad[0], pad[1], constants.TABLE_TOP_Z_M + CUBE_HALF_M])
+
+    def pad_yaw(self, name: str) -> float:
+        """The jaws' yaw over ``name``'s pad with the wrist unrolled: along the pad's
+        bearing from the pan axis (a pad is round: any yaw places the cube)."""
+        return self._kinematics.bearing(self.place_target(name))
+
+    def carry_turn(self, name: str, yaw: float, turn: float) -> float:
+        # Every cube arrives with the wrist unrolled, so the arm leaves each pad in one
+        # posture and the next approach starts as alike as the first does from home.
+        return math.remainder(self.pad_yaw(name) - yaw, math.tau)
+
+    def place_yaw(self, name: str, yaw: float) -> float:
+        return self.pad_yaw(name)
 
 
 SPEC = TaskSpec(

@@ -553,6 +553,12 @@ class PlaceStateExpert(GraspExpert):
         """The jaws' yaw while lowering the object onto its target (default: as held)."""
         return yaw
 
+    def carry_turn(self, name: str, yaw: float, turn: float) -> float:
+        """How far (rad) the jaws, now at ``yaw``, turn on the way to the target; ``turn``
+        is how far the target's bearing from the pan axis turns (default: that far, so
+        the held object keeps its angle to the arm)."""
+        return turn
+
     def released(self, name: str) -> bool:
         target = self.place_target(name)
         obj = self.physics.object_position(name)
@@ -593,7 +599,7 @@ class PlaceStateExpert(GraspExpert):
         return Move(
             "line",
             point - offset,
-            yaw + fraction * turn,
+            yaw + fraction * self.carry_turn(name, yaw, turn),
             c.gripper_closed_rad,
             speed_m=c.carry_speed_m,
             stage="carry",

@@ -64,3 +64,28 @@ def test_the_expert_sorts_one_cube_after_another_and_none_comes_undone(env):
             break
     assert info["is_success"]
     assert order == list(COLOURS)
+
+
+def test_each_cube_is_let_go_with_the_wrist_unrolled_whatever_face_it_was_taken_by(env):
+    """The arm leaves every pad in the one posture of that pad, as it leaves home for the
+    first cube: the held cube turns on the way so that the wrist arrives unrolled."""
+    expert = make_expert(env)
+    wrist_roll = 4  # the servo targets' order: pan, lift, elbow, wrist flex, wrist roll, gripper
+    obs, info = env.reset(seed=3)
+    expert.reset()
+    grasp_rolls, release_rolls = {}, {}
+    while True:
+        action = expert(obs, info)
+        stage, name = expert.stage, expert.grasp_object()
+        commanded = env.unwrapped.commanded_targets
+        if stage == "close":
+            grasp_rolls.setdefault(name, float(commanded[wrist_roll]))
+        if stage == "release":
+            release_rolls.setdefault(name, float(commanded[wrist_roll]))
+        obs, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            break
+    assert info["is_success"]
+    assert sorted(release_rolls) == sorted(cube_name(c) for c in COLOURS)
+    assert max(abs(r) for r in grasp_rolls.values()) > 0.2, grasp_rolls  # faces that roll it
+    assert all(abs(r) < 0.1 for r in release_rolls.values()), release_rolls
