@@ -12,16 +12,13 @@ step towards it, within speed and acceleration limits. So:
 * from any reachable state — after random actions, a push, a dropped object, half-closed
   jaws — it carries on from there.
 
-Only memoisation is kept between calls (the grasp yaw of an object pose, an inverse
-kinematics solution of a target), which gives the same answers as computing afresh.
+Only memoisation (of inverse kinematics) is kept between calls; it answers as if afresh.
 
 Speeds: the arm's targets move at most ``joint_speed_rad`` per step and change that speed
-by at most ``joint_accel_rad`` per step, measured against the joints' current velocity,
-and brake in time to stop at the goal; straight-line moves
-of the jaws go at most ``line_speed_m`` per step; the gripper's target at most
-``gripper_speed_rad``. Targets left far from the joints (pressed into the table, flung by
-a shove) come back to them at up to ``relax_speed_rad``: the arm is already there.
-"""
+by at most ``joint_accel_rad`` per step (against the joints' velocity), braking in time
+to stop at the goal; the jaws' straight lines go at most ``line_speed_m`` per step, the
+gripper's target ``gripper_speed_rad``. Targets left far from the joints (pressed into
+the table, flung by a shove) come back at up to ``relax_speed_rad``."""
 
 from __future__ import annotations
 
@@ -38,7 +35,7 @@ from gym_soarm.sim.kinematics import ArmKinematics, JawPose, downward_rotation
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.sim.timing import DEFAULT_CONTROL_HZ
 from gym_soarm.tasks.grasp_figures import GraspFigures
-from gym_soarm.validation import check_dataclass_fields, check_positive
+from gym_soarm.validation import check_positive
 
 _QUARTER_TURN_RAD = math.pi / 2
 _N_ARM = len(constants.ARM_JOINT_NAMES)
@@ -90,13 +87,10 @@ class StateExpertConfig(GraspFigures):
     def __post_init__(self) -> None:
         super().__post_init__()
         speeds = ("_speed_rad", "_speed_m", "_accel_rad")
-        defaults = {field.name: field.default for field in dataclasses.fields(self)}
-
-        def positive(name: str, value: Any) -> None:
-            check_positive(name, value, fix=f"Pass e.g. {name}={defaults[name]!r} (the default).")
-
-        check_dataclass_fields(self, lambda name: name.endswith(speeds), positive)
-        positive("pad_clear_m", self.pad_clear_m)
+        for field in dataclasses.fields(self):
+            if field.name.endswith(speeds) or field.name == "pad_clear_m":
+                fix = f"Pass e.g. {field.name}={field.default!r} (the default)."
+                check_positive(field.name, getattr(self, field.name), fix=fix)
         pads = self.open_pads_m
         if (
             not isinstance(pads, tuple)
@@ -554,9 +548,8 @@ class PlaceStateExpert(GraspExpert):
         return yaw
 
     def carry_turn(self, name: str, yaw: float, turn: float) -> float:
-        """How far (rad) the jaws, now at ``yaw``, turn on the way to the target; ``turn``
-        is how far the target's bearing from the pan axis turns (default: that far, so
-        the held object keeps its angle to the arm)."""
+        """How far (rad) the jaws at ``yaw`` turn on the way to a target whose bearing from
+        the pan axis turns by ``turn`` (default: as far: the object keeps its angle)."""
         return turn
 
     def released(self, name: str) -> bool:

@@ -294,14 +294,13 @@ def test_the_imitation_recipes_are_complete():
             assert set(row) <= set(HYPERPARAMS[algo]["default"]), (algo, task)
     assert set(recipe("bc", "LiftCube-v0")["algo"]) < set(recipe("dagger", "LiftCube-v0")["algo"])
     # Stack's and push's rows double the demonstrations and keep the rest of the recipe,
-    # but push's DAgger, which anneals its learning rate.
+    # but push's, which anneals its learning rate.
     for algo in IMITATION:
         lift = recipe(algo, "LiftCube-v0")
         for task in ("StackCube-v0", "PushCube-v0"):
             twice = recipe(algo, task)
             assert (twice["algo"]["demos"], lift["algo"]["demos"]) == (400, 200)
-            annealed = algo == "dagger" and task == "PushCube-v0"
-            schedule = "cosine" if annealed else lift["algo"]["lr_schedule"]
+            schedule = "cosine" if task == "PushCube-v0" else lift["algo"]["lr_schedule"]
             assert twice["algo"]["lr_schedule"] == schedule
             assert {**twice["algo"], "demos": 200, "lr_schedule": "constant"} == lift["algo"]
 
