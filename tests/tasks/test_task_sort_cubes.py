@@ -6,6 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from gym_soarm import constants
 from gym_soarm.expert import make_expert
 from gym_soarm.tasks.placement import yaw_quaternion
 from gym_soarm.tasks.sort_cubes import COLOURS, CUBE_HALF_M, cube_name, pad_name
@@ -70,7 +71,7 @@ def test_each_cube_is_let_go_with_the_wrist_unrolled_whatever_face_it_was_taken_
     """The arm leaves every pad in the one posture of that pad, as it leaves home for the
     first cube: the held cube turns on the way so that the wrist arrives unrolled."""
     expert = make_expert(env)
-    wrist_roll = 4  # the servo targets' order: pan, lift, elbow, wrist flex, wrist roll, gripper
+    wrist_roll = constants.JOINT_NAMES.index("wrist_roll")
     obs, info = env.reset(seed=3)
     expert.reset()
     grasp_rolls, release_rolls = {}, {}
