@@ -112,11 +112,18 @@ def check_positive(name: str, value: Any, *, fix: str = "") -> float:
 def check_dataclass_fields(
     config: Any, picks: Callable[[str], bool], check: Callable[[str, Any], Any]
 ) -> None:
-    """Run ``check(name, value)`` on each field of the dataclass ``config`` whose name
-    ``picks`` chooses (``lambda name: name.endswith("_steps")``), in declaration order."""
+    """Run ``check(name, value, fix=...)`` on each field of the dataclass ``config`` whose
+    name ``picks`` chooses (``lambda name: name.endswith("_steps")``), in declaration
+    order; ``fix`` names the field's default ("Pass e.g. rise_steps=20 (the default).")."""
     for field in dataclasses.fields(config):
         if picks(field.name):
-            check(field.name, getattr(config, field.name))
+            default = field.default
+            fix = (
+                ""
+                if default is dataclasses.MISSING
+                else f"Pass e.g. {field.name}={default!r} (the default)."
+            )
+            check(field.name, getattr(config, field.name), fix=fix)
 
 
 def check_subset(name: str, value: Any, valid: Sequence[str]) -> tuple[str, ...]:

@@ -57,7 +57,7 @@ class ExpertConfig(GraspFigures):
         check_dataclass_fields(
             self,
             lambda name: name.endswith("_steps"),
-            lambda name, value: check_int(name, value, 1),
+            lambda name, value, fix: check_int(name, value, 1, fix=fix),
         )
         check_int("max_regrasps", self.max_regrasps, 0)
         if not self.approach_speed_rad_per_step > 0.0:

@@ -35,7 +35,7 @@ from gym_soarm.sim.kinematics import ArmKinematics, JawPose, downward_rotation
 from gym_soarm.sim.physics import SoArmPhysics
 from gym_soarm.sim.timing import DEFAULT_CONTROL_HZ
 from gym_soarm.tasks.grasp_figures import GraspFigures
-from gym_soarm.validation import check_positive
+from gym_soarm.validation import check_dataclass_fields, check_positive
 
 _QUARTER_TURN_RAD = math.pi / 2
 _N_ARM = len(constants.ARM_JOINT_NAMES)
@@ -87,10 +87,9 @@ class StateExpertConfig(GraspFigures):
     def __post_init__(self) -> None:
         super().__post_init__()
         speeds = ("_speed_rad", "_speed_m", "_accel_rad")
-        for field in dataclasses.fields(self):
-            if field.name.endswith(speeds) or field.name == "pad_clear_m":
-                fix = f"Pass e.g. {field.name}={field.default!r} (the default)."
-                check_positive(field.name, getattr(self, field.name), fix=fix)
+        check_dataclass_fields(
+            self, lambda name: name.endswith(speeds) or name == "pad_clear_m", check_positive
+        )
         pads = self.open_pads_m
         if (
             not isinstance(pads, tuple)

@@ -188,7 +188,9 @@ class GamepadLayout:
 
     def __post_init__(self) -> None:
         check_dataclass_fields(
-            self, lambda name: name != "dead_zone", lambda name, value: check_int(name, value, 0)
+            self,
+            lambda name: name != "dead_zone",
+            lambda name, value, fix: check_int(name, value, 0, fix=fix),
         )
         zone = check_number("dead_zone", self.dead_zone, 0.0)
         if zone >= 1.0:

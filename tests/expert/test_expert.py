@@ -218,7 +218,11 @@ def test_make_expert_rejects_other_environments_and_configs(make_env):
 @pytest.mark.parametrize(
     "field, value, fragment",
     [
-        ("carry_steps", 0, "carry_steps must be an int >= 1"),
+        (
+            "carry_steps",
+            0,
+            r"carry_steps must be an int >= 1; got 0\. Pass e\.g\. carry_steps=\d+ \(the default\)",
+        ),
         ("lift_steps", 2.5, "lift_steps must be an int >= 1"),
         ("max_regrasps", -1, "max_regrasps must be an int >= 0"),
         ("lift_reach_m", (0.2, 0.1), "lift_reach_m must be"),

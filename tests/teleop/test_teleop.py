@@ -333,7 +333,9 @@ def test_gamepad_sticks_and_buttons_map_to_motions_and_commands():
         gamepad_motion([0.0, 0.0], buttons, layout)
     with pytest.raises(ValueError, match="dead_zone"):
         GamepadLayout(dead_zone=1.0)
-    with pytest.raises(ValueError, match="x_axis must be an int >= 0"):
+    with pytest.raises(
+        ValueError, match=r"x_axis must be an int >= 0; got -1\. Pass e\.g\. x_axis=1 "
+    ):
         GamepadLayout(x_axis=-1)
 
 
