@@ -26,8 +26,7 @@ Reward terms, each in [0, 1] and never falling as the task progresses:
 gripper's position. ``info`` adds ``cubes_sorted`` and each ``<colour>_cube_pos``.
 
 The expert sorts the cubes in that order: one pick-and-place cycle each, with the jaws
-rising straight up, open, after each release; the state expert then takes the arm home
-before it approaches the next cube.
+rising straight up, open, after each release.
 """
 
 from __future__ import annotations
@@ -54,7 +53,7 @@ from gym_soarm.tasks.rewards import (
     tolerance,
 )
 from gym_soarm.tasks.scripted import OneAfterAnother
-from gym_soarm.tasks.state_expert import Move, PlaceStateExpert
+from gym_soarm.tasks.state_expert import PlaceStateExpert
 from gym_soarm.tasks.state_fields import (
     GRIPPER_POSITION_FIELD,
     fixture_position_field,
@@ -258,54 +257,9 @@ class SortCubesExpert(OneAfterAnother):
         return np.array([pad[0], pad[1], constants.TABLE_TOP_Z_M + CUBE_HALF_M])
 
 
-PARKED_GRIPPER_RAD = 1.1
-"""The gripper's target while the state expert takes the arm home between two cubes:
-wider than open, a value no other stage commands, so that the state itself (the
-commanded gripper) says the arm is on its way home."""
-
-_N_ARM = len(constants.ARM_JOINT_NAMES)
-
-
 class SortCubesStateExpert(PlaceStateExpert):
     """From the state: the first cube (in :data:`COLOURS` order) not yet on its pad is
-    picked and placed on it. Between two cubes the arm goes home, so that every cube is
-    approached from where the first one is: a cube just let go, the jaws open them wider
-    (:data:`PARKED_GRIPPER_RAD`), rise, and turn the arm back to its home posture; there
-    the next approach opens them as usual."""
-
-    def decide(self, commanded: np.ndarray) -> Move:
-        move = self.between_cubes(commanded)
-        return super().decide(commanded) if move is None else move
-
-    def between_cubes(self, commanded: np.ndarray) -> Move | None:
-        """The way home after a cube is sorted while others are not (None otherwise)."""
-        physics, c = self.physics, self.config
-        unsorted = self.env.task_logic.unsorted(physics)
-        if len(unsorted) in (0, len(COLOURS)):
-            return None
-        site, yaw = self.commanded_site(commanded)
-        low = site[2] < c.hover_height_m - 0.01
-        if commanded[_N_ARM] >= PARKED_GRIPPER_RAD - 0.005:  # on the way home
-            if low:
-                return self.rise(commanded, c.hover_height_m, PARKED_GRIPPER_RAD, yaw)
-            if float(np.max(np.abs(commanded[:_N_ARM]))) > 0.02:
-                home = np.zeros(_N_ARM)
-                return Move("posture", home, yaw, PARKED_GRIPPER_RAD, stage="home")
-            if float(np.linalg.norm(site - physics.grasp_center())) > 0.005:
-                return Move("hold", None, yaw, PARKED_GRIPPER_RAD, stage="home")
-            return None  # home: the approach opens the jaws to their usual width
-        if site[2] > c.hover_height_m + 0.02:
-            return None
-        # Just let go: the cube nearest the jaws is a sorted one, right under them.
-        jaws = physics.grasp_center()[:2]
-        distances = {
-            colour: float(np.hypot(*(physics.object_position(cube_name(colour))[:2] - jaws)))
-            for colour in COLOURS
-        }
-        nearest = min(distances, key=distances.get)
-        if nearest in unsorted or distances[nearest] > 0.03:
-            return None
-        return self.rise(commanded, c.hover_height_m, PARKED_GRIPPER_RAD, yaw)
+    picked and placed on it; a cube just let go is cleared before the next one."""
 
     def _colour(self) -> str:
         unsorted = self.env.task_logic.unsorted(self.physics)
