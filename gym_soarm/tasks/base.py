@@ -131,6 +131,10 @@ class Task:
     goal_pairs: ClassVar[tuple[tuple[str, str], ...]] = ()
     """(object, goal) position fields of :attr:`state_fields`: ``obs_type="state"`` adds
     the vector from each object to its goal (``("cube_pos", "goal_pos")``)."""
+    progress_fields: ClassVar[tuple[StateField, ...]] = ()
+    """Fields that ``obs_type="state"`` adds last (``environment_state`` does not hold
+    them): the task's progress where the positions alone leave a policy to work it out
+    (sort: which cubes are sorted, and the cube worked on now)."""
     episode_shapes: ClassVar[Mapping[str, tuple[int, ...]]] = MappingProxyType({})
     """The values the task keeps per episode, by name, with their shape for one
     environment (``()`` for a number): its reset sets them and :meth:`evaluate` may

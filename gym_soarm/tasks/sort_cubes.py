@@ -56,8 +56,10 @@ from gym_soarm.tasks.scripted import OneAfterAnother
 from gym_soarm.tasks.state_expert import PlaceStateExpert
 from gym_soarm.tasks.state_fields import (
     GRIPPER_POSITION_FIELD,
+    StateField,
     fixture_position_field,
     object_pose_fields,
+    position_field,
 )
 
 COLOURS: tuple[str, ...] = ("red", "green", "blue")
@@ -118,6 +120,50 @@ def pad_name(colour: str) -> str:
     return f"{colour}_pad"
 
 
+def _sorted_flags(sim: SimArrays, task: Any) -> Array:
+    """``(n, 3)``: 1 where a cube lies on its own pad, out of the jaws."""
+    xp = sim.xp
+    flags = [on_own_pad(sim, c)[0] & ~sim.touched_by_jaws(cube_name(c)) for c in COLOURS]
+    return xp.stack([xp.astype(flag, xp.float64) for flag in flags], axis=-1)
+
+
+def _current(sim: SimArrays, task: Any) -> Array:
+    """``(n, 3)``: which cube is worked on now, one-hot (see ``progress_fields``)."""
+    xp = sim.xp
+    flags = _sorted_flags(sim, task)
+    red = 1.0 - flags[..., 0]
+    green = flags[..., 0] * (1.0 - flags[..., 1])
+    return xp.stack([red, green, 1.0 - red - green], axis=-1)
+
+
+def _weighted(sim: SimArrays, weights: Array, read: Any) -> Array:
+    """``(n, 3)``: the positions ``read(colour)`` summed with one weight per colour."""
+    return sum(weights[..., i : i + 1] * read(c) for i, c in enumerate(COLOURS))
+
+
+def _jaw_to_current(sim: SimArrays, task: Any) -> Array:
+    cube = _weighted(sim, _current(sim, task), lambda c: sim.object_position(cube_name(c)))
+    return cube - sim.grasp_center()
+
+
+def _current_to_pad(sim: SimArrays, task: Any) -> Array:
+    current = _current(sim, task)
+    cube = _weighted(sim, current, lambda c: sim.object_position(cube_name(c)))
+    pad = _weighted(sim, current, lambda c: sim.fixture_position(pad_name(c)))
+    return pad - cube
+
+
+def on_own_pad(sim: SimArrays, colour: str) -> tuple[Array, Array, Array]:
+    """``(on_pad, distance_m, height_m)``, ``(n,)`` each: the ``colour`` cube's centre is
+    within its pad's radius and its bottom on the pad (held or not); its horizontal
+    distance to the pad's centre; its bottom's height."""
+    cube = cube_name(colour)
+    distance = xy_distance(sim.object_position(cube), sim.fixture_position(pad_name(colour)))
+    height = sim.object_height(cube)
+    on_pad = (distance <= PAD_RADIUS_M) & (sim.xp.abs(height - PAD_TOP_Z_M) <= PLACE_HEIGHT_TOL_M)
+    return on_pad, distance, height
+
+
 class SortCubesTask(Task):
     """Put each cube on the pad of its colour, released and at rest."""
 
@@ -136,6 +182,16 @@ class SortCubesTask(Task):
         GRIPPER_POSITION_FIELD,
     )
     goal_pairs: ClassVar = tuple((f"{c}_cube_pos", f"{c}_pad_pos") for c in COLOURS)
+    progress_fields: ClassVar = (
+        StateField("sorted", tuple(f"{c}_sorted" for c in COLOURS), 1.0, _sorted_flags),
+        StateField("current_cube", tuple(f"current_is_{c}" for c in COLOURS), 1.0, _current),
+        position_field("jaw_to_current_cube", "jaw_to_current_cube", _jaw_to_current),
+        position_field("current_cube_to_pad", "current_cube_to_pad", _current_to_pad),
+    )
+    """Which cubes are sorted, the cube worked on now (the first unsorted one in
+    :data:`COLOURS` order; the last once all are), the vector from the jaws to it and from
+    it to its pad: a policy that reads the positions alone has to work out which cube
+    comes next, and cloned from the expert it blends the cubes and stalls."""
 
     def initialize_episode(
         self, physics: SoArmPhysics, rng: np.random.Generator, options: Mapping[str, Any]
@@ -159,9 +215,7 @@ class SortCubesTask(Task):
         """One cube's flags and distances, ``(n,)`` each (see :meth:`evaluate`)."""
         xp = sim.xp
         cube = cube_name(colour)
-        distance = xy_distance(sim.object_position(cube), sim.fixture_position(pad_name(colour)))
-        height = sim.object_height(cube)
-        on_pad = (distance <= PAD_RADIUS_M) & (xp.abs(height - PAD_TOP_Z_M) <= PLACE_HEIGHT_TOL_M)
+        on_pad, distance, height = on_own_pad(sim, colour)
         # How far the jaws are from the cube: horizontally, and in height once more than
         # REACH_HEADROOM_M above it (so rising off a placed cube loses nothing).
         gap = sim.grasp_center() - sim.object_position(cube)

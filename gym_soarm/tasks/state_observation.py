@@ -14,6 +14,8 @@ task state               N     the task's ``environment_state`` (its ``state_nam
                                state (the gripper frame's own excepted), m
 ``<a>_to_<b>_x`` ..      3/g   from each object to its goal (the task's
                                :attr:`~gym_soarm.tasks.base.Task.goal_pairs`), m
+task progress            M     the task's
+                               :attr:`~gym_soarm.tasks.base.Task.progress_fields`, if any
 =======================  ====  ==========================================================
 
 Angles are radians whatever the env's ``units`` (those apply to actions and
@@ -78,6 +80,8 @@ class StateObservation:
         names += list(task.state_names)
         names += [f"jaw_to_{prefix}_{a}" for prefix, _ in positions for a in AXES]
         names += [f"{pa}_to_{pb}_{a}" for (pa, _), (pb, _) in self._pairs for a in AXES]
+        progress_at = len(names)
+        names += [name for field in task.progress_fields for name in field.names]
         if len(set(names)) != len(names):
             repeated = sorted({n for n in names if names.count(n) > 1})
             raise ValueError(
@@ -88,6 +92,7 @@ class StateObservation:
         n_joints = len(joints)
         self._size = len(names)
         self._task_slice = slice(3 * n_joints + 3, 3 * n_joints + 3 + len(task.state_names))
+        self._progress_slice = slice(progress_at, self._size)
 
     @property
     def space(self) -> spaces.Box:
@@ -100,6 +105,9 @@ class StateObservation:
         high[3 * n : 3 * n + 3] = constants.POSITION_BOUND_M
         _, task_high = self._task.state_bounds()
         high[self._task_slice] = task_high
+        fields = self._task.progress_fields
+        if fields:
+            high[self._progress_slice] = np.concatenate([np.full(f.size, f.bound) for f in fields])
         return spaces.Box(-high, high, dtype=np.float32)
 
     def batch(self, sim: SimArrays, commanded_rad: Array) -> Array:
@@ -116,6 +124,8 @@ class StateObservation:
         parts = [sim.joint_angles(), sim.joint_velocities(), commanded_rad, jaw, state]
         parts += [state[..., start : start + 3] - jaw for start in self._jaw_to]
         parts += [state[..., b : b + 3] - state[..., a : a + 3] for (_, a), (_, b) in self._pairs]
+        task = self._task
+        parts += [xp.astype(field.read(sim, task), jaw.dtype) for field in task.progress_fields]
         return xp.astype(xp.concat(parts, axis=-1), xp.float32)
 
     def __call__(self, physics: SoArmPhysics, commanded_rad: np.ndarray) -> np.ndarray:
