@@ -90,3 +90,39 @@ def test_each_cube_is_let_go_with_the_wrist_unrolled_whatever_face_it_was_taken_
     assert sorted(release_rolls) == sorted(cube_name(c) for c in COLOURS)
     assert max(abs(r) for r in grasp_rolls.values()) > 0.2, grasp_rolls  # faces that roll it
     assert all(abs(r) < 0.1 for r in release_rolls.values()), release_rolls
+
+
+def test_the_state_observation_tells_the_cube_worked_on_as_the_expert_takes_them():
+    """``obs_type="state"`` ends with sort's progress: the sorted flags, the cube worked
+    on now (the expert's, the first unsorted one), the jaws to it and it to its pad."""
+    env = gym.make("gym_soarm/SortCubes-v0", obs_type="state")
+    names = list(env.unwrapped.observation_names)
+    at = {name: names.index(name) for name in names}
+    flags = [at[f"{c}_sorted"] for c in COLOURS]
+    current = [at[f"current_is_{c}"] for c in COLOURS]
+    jaw_to = [at[f"jaw_to_current_cube_{a}"] for a in "xyz"]
+    to_pad = [at[f"current_cube_to_pad_{a}"] for a in "xyz"]
+    assert names[-12:] == [names[i] for i in flags + current + jaw_to + to_pad]
+    expert = make_expert(env)
+    obs, info = env.reset(seed=2)
+    physics = env.unwrapped.physics
+    seen = []
+    while True:
+        action = expert(obs, info)
+        colour = expert.grasp_object().removesuffix("_cube")
+        done = env.unwrapped.task_logic.unsorted(physics)
+        assert env.observation_space.contains(obs)
+        np.testing.assert_array_equal(obs[flags], [c not in done for c in COLOURS])
+        np.testing.assert_array_equal(obs[current], [c == colour for c in COLOURS])
+        cube = physics.object_position(cube_name(colour))
+        pad = physics.fixture_position(pad_name(colour))
+        np.testing.assert_allclose(obs[jaw_to], cube - physics.grasp_center(), atol=1e-6)
+        np.testing.assert_allclose(obs[to_pad], pad - cube, atol=1e-6)
+        if not seen or seen[-1] != colour:
+            seen.append(colour)
+        obs, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            break
+    env.close()
+    assert info["is_success"]
+    assert seen == list(COLOURS)
