@@ -17,6 +17,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium import spaces
 
 from gym_soarm.expert import make_expert, run_episode
 from gym_soarm.rl.hyperparams import POLICY_CLASSES, TRAINERS
@@ -136,12 +137,20 @@ class TrainedPolicy:
             action_space = env.action_space
         finally:
             env.close()
-        if settings["observation_names"] != names:
-            raise ValueError(
-                f"the policy in {str(folder)!r} was trained on another observation layout "
-                f"({len(settings['observation_names'])} values) than {trained} has now "
-                f"({len(names)}); retrain it with this version of gym-soarm."
-            )
+        self._columns: list[int] | None = None
+        trained_names = settings["observation_names"]
+        if trained_names != names:
+            missing = [name for name in trained_names if name not in names]
+            if missing or model_file(settings) != MODEL_FILE:
+                raise ValueError(
+                    f"the policy in {str(folder)!r} was trained on another observation layout "
+                    f"({len(trained_names)} values) than {trained} has now ({len(names)}; "
+                    f"without {missing[:4]}); retrain it with this version of gym-soarm."
+                )
+            # Trained before the observation gained values (a task's progress): it reads
+            # the values it was trained on, by name.
+            self._columns = [names.index(name) for name in trained_names]
+            obs_space = spaces.Box(-np.inf, np.inf, (len(trained_names),), np.float32)
         self.settings = settings
         self.task = trained
         self._normalizer = None
@@ -189,6 +198,8 @@ class TrainedPolicy:
     def __call__(self, obs: Any, info: dict[str, Any] | None = None) -> np.ndarray:
         if self._pixels is not None:
             return self._pixels(obs, info)
+        if self._columns is not None:
+            obs = np.asarray(obs)[..., self._columns]
         if self._actor is not None:
             return self._actor(obs)
         if self._normalizer is not None:

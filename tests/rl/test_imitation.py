@@ -14,6 +14,7 @@ import sys
 import zipfile
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -24,6 +25,7 @@ if os.environ.get("GYM_SOARM_REQUIRE_RL") != "1":
     pytest.importorskip("torch", reason='needs the rl extra: pip install "gym-soarm[rl]"')
 
 from interrupt import interrupt_when
+from paths import TESTS
 
 from gym_soarm.expert import make_expert
 from gym_soarm.rl.dagger import ImitationTrainer
@@ -324,3 +326,40 @@ def test_ctrl_c_keeps_the_last_checkpoint_and_curve(tmp_path):
     for name in ("model.zip", "curve.csv", "curve.png", "settings.json", "demos.npz"):
         assert (out / name).is_file(), name
     TrainedPolicy(out)  # the kept checkpoint loads
+
+
+def test_a_policy_trained_before_the_observation_gained_values_still_acts(tmp_path):
+    """A sort policy of the 81 values before its progress was added reads those values, by
+    name, from today's 93; a layout that lacks values it was trained on is refused."""
+    from gymnasium import spaces
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    settings = json.loads(
+        (TESTS / "data/formats/policy-settings-sort-before-progress.json").read_text()
+    )
+    names = settings["observation_names"]
+    assert len(names) == 81
+    env = make_env("SortCubes-v0", settings["env"])
+    now = list(env.unwrapped.observation_names)
+    assert len(now) == 93 and set(names) < set(now)
+
+    class Old(gym.Env):  # the spaces the policy was trained with
+        observation_space = spaces.Box(-np.inf, np.inf, (81,), np.float32)
+        action_space = env.action_space
+
+    model = PPO("MlpPolicy", DummyVecEnv([Old]), seed=0, device="cpu", n_steps=64)
+    model.save(tmp_path / "model.zip")
+    (tmp_path / "settings.json").write_text(json.dumps(settings))
+    policy = TrainedPolicy(tmp_path)
+    obs, _ = env.reset(seed=1000)
+    columns = [now.index(name) for name in names]
+    expected, _ = model.predict(obs[columns], deterministic=True)
+    np.testing.assert_array_equal(policy(obs), expected)
+    obs, *_ = env.step(policy(obs))
+    env.close()
+
+    settings["observation_names"] = [*names[:-1], "not_a_value"]
+    (tmp_path / "settings.json").write_text(json.dumps(settings))
+    with pytest.raises(ValueError, match=r"another observation layout.*not_a_value.*retrain"):
+        TrainedPolicy(tmp_path)
