@@ -23,7 +23,9 @@ Reward terms, each in [0, 1] and never falling as the task progresses:
   10 cm above it.
 
 ``environment_state``: each cube's position and quaternion, each pad's position and the
-gripper's position. ``info`` adds ``cubes_sorted`` and each ``<colour>_cube_pos``.
+gripper's position. ``obs_type="state"`` adds the task's progress last: which cubes are
+sorted, the cube worked on now (one-hot), and the vectors from the jaws to it and from it
+to its pad. ``info`` adds ``cubes_sorted`` and each ``<colour>_cube_pos``.
 
 The expert sorts the cubes in that order: one pick-and-place cycle each, with the jaws
 rising straight up, open, after each release.
@@ -122,9 +124,9 @@ def pad_name(colour: str) -> str:
 
 def _sorted_flags(sim: SimArrays, task: Any) -> Array:
     """``(n, 3)``: 1 where a cube lies on its own pad, out of the jaws."""
-    xp = sim.xp
+    xp, dtype = sim.xp, sim.qpos.dtype
     flags = [on_own_pad(sim, c)[0] & ~sim.touched_by_jaws(cube_name(c)) for c in COLOURS]
-    return xp.stack([xp.astype(flag, xp.float64) for flag in flags], axis=-1)
+    return xp.stack([xp.astype(flag, dtype) for flag in flags], axis=-1)
 
 
 def _current(sim: SimArrays, task: Any) -> Array:
