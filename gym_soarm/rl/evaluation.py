@@ -137,20 +137,9 @@ class TrainedPolicy:
             action_space = env.action_space
         finally:
             env.close()
-        self._columns: list[int] | None = None
-        trained_names = settings["observation_names"]
-        if trained_names != names:
-            missing = [name for name in trained_names if name not in names]
-            if missing or model_file(settings) != MODEL_FILE:
-                raise ValueError(
-                    f"the policy in {str(folder)!r} was trained on another observation layout "
-                    f"({len(trained_names)} values) than {trained} has now ({len(names)}; "
-                    f"without {missing[:4]}); retrain it with this version of gym-soarm."
-                )
-            # Trained before the observation gained values (a task's progress): it reads
-            # the values it was trained on, by name.
-            self._columns = [names.index(name) for name in trained_names]
-            obs_space = spaces.Box(-np.inf, np.inf, (len(trained_names),), np.float32)
+        self._columns = _trained_columns(folder, settings, names, trained)
+        if self._columns is not None:
+            obs_space = spaces.Box(-np.inf, np.inf, (len(self._columns),), np.float32)
         self.settings = settings
         self.task = trained
         self._normalizer = None
@@ -177,8 +166,9 @@ class TrainedPolicy:
         if self.model.observation_space.shape != obs_space.shape or (
             self.model.action_space.shape != action_space.shape
         ):
+            layout = "another observation layout: " if self._columns is not None else ""
             raise ValueError(
-                f"the model in {str(path / MODEL_FILE)!r} takes observations of shape "
+                f"{layout}the model in {str(path / MODEL_FILE)!r} takes observations of shape "
                 f"{self.model.observation_space.shape} and actions of shape "
                 f"{self.model.action_space.shape}; {trained} with its saved settings has "
                 f"{obs_space.shape} and {action_space.shape}. Retrain it."
@@ -206,6 +196,26 @@ class TrainedPolicy:
             obs = self._normalizer.normalize_obs(obs)
         action, _ = self.model.predict(obs, deterministic=True)
         return action
+
+
+def _trained_columns(
+    folder: Any, settings: dict[str, Any], names: list[str], trained: str
+) -> list[int] | None:
+    """Where the values a state policy was trained on lie in today's observation ``names``
+    (None: the same layout). A policy trained before the observation gained values (a
+    task's progress) reads its own by name; one whose values are not all there is
+    refused."""
+    trained_names = settings["observation_names"]
+    if trained_names == names:
+        return None
+    missing = [name for name in trained_names if name not in names]
+    if missing or model_file(settings) != MODEL_FILE:
+        raise ValueError(
+            f"the policy in {str(folder)!r} was trained on another observation layout "
+            f"({len(trained_names)} values) than {trained} has now ({len(names)}; without "
+            f"{missing[:4]}); retrain it with this version of gym-soarm."
+        )
+    return [names.index(name) for name in trained_names]
 
 
 def _rsl_actor(folder: Path, settings: dict[str, Any], obs_shape: Any, action_shape: Any) -> Any:
