@@ -61,7 +61,6 @@ from gym_soarm.tasks.state_fields import (
     StateField,
     fixture_position_field,
     object_pose_fields,
-    position_field,
 )
 
 COLOURS: tuple[str, ...] = ("red", "green", "blue")
@@ -122,37 +121,37 @@ def pad_name(colour: str) -> str:
     return f"{colour}_pad"
 
 
-def _sorted_flags(sim: SimArrays, task: Any) -> Array:
-    """``(n, 3)``: 1 where a cube lies on its own pad, out of the jaws."""
+PROGRESS_NAMES: tuple[str, ...] = (
+    *(f"{c}_sorted" for c in COLOURS),
+    *(f"current_is_{c}" for c in COLOURS),
+    *(f"jaw_to_current_cube_{a}" for a in "xyz"),
+    *(f"current_cube_to_pad_{a}" for a in "xyz"),
+)
+"""The names of sort's progress in ``obs_type="state"`` (``SortCubesTask.progress_fields``)."""
+
+
+def _progress(sim: SimArrays, task: Any) -> Array:
+    """``(n, 12)``: 1 where each cube lies on its own pad out of the jaws; the cube worked
+    on now, one-hot (the first unsorted one, the last once all are); the vectors from the
+    jaws to it and from it to its pad (m)."""
     xp, dtype = sim.xp, sim.qpos.dtype
-    flags = [on_own_pad(sim, c)[0] & ~sim.touched_by_jaws(cube_name(c)) for c in COLOURS]
-    return xp.stack([xp.astype(flag, dtype) for flag in flags], axis=-1)
-
-
-def _current(sim: SimArrays, task: Any) -> Array:
-    """``(n, 3)``: which cube is worked on now, one-hot (see ``progress_fields``)."""
-    xp = sim.xp
-    flags = _sorted_flags(sim, task)
-    red = 1.0 - flags[..., 0]
-    green = flags[..., 0] * (1.0 - flags[..., 1])
-    return xp.stack([red, green, 1.0 - red - green], axis=-1)
-
-
-def _weighted(sim: SimArrays, weights: Array, read: Any) -> Array:
-    """``(n, 3)``: the positions ``read(colour)`` summed with one weight per colour."""
-    return sum(weights[..., i : i + 1] * read(c) for i, c in enumerate(COLOURS))
-
-
-def _jaw_to_current(sim: SimArrays, task: Any) -> Array:
-    cube = _weighted(sim, _current(sim, task), lambda c: sim.object_position(cube_name(c)))
-    return cube - sim.grasp_center()
-
-
-def _current_to_pad(sim: SimArrays, task: Any) -> Array:
-    current = _current(sim, task)
-    cube = _weighted(sim, current, lambda c: sim.object_position(cube_name(c)))
-    pad = _weighted(sim, current, lambda c: sim.fixture_position(pad_name(c)))
-    return pad - cube
+    flags = [
+        xp.astype(on_own_pad(sim, c)[0] & ~sim.touched_by_jaws(cube_name(c)), dtype)
+        for c in COLOURS
+    ]
+    red = 1.0 - flags[0]
+    green = flags[0] * (1.0 - flags[1])
+    current = (red, green, 1.0 - red - green)
+    cube = sum(
+        w[..., None] * sim.object_position(cube_name(c))
+        for w, c in zip(current, COLOURS, strict=True)
+    )
+    pad = sum(
+        w[..., None] * sim.fixture_position(pad_name(c))
+        for w, c in zip(current, COLOURS, strict=True)
+    )
+    values = [xp.stack([*flags, *current], axis=-1), cube - sim.grasp_center(), pad - cube]
+    return xp.concat(values, axis=-1)
 
 
 def on_own_pad(sim: SimArrays, colour: str) -> tuple[Array, Array, Array]:
@@ -185,10 +184,7 @@ class SortCubesTask(Task):
     )
     goal_pairs: ClassVar = tuple((f"{c}_cube_pos", f"{c}_pad_pos") for c in COLOURS)
     progress_fields: ClassVar = (
-        StateField("sorted", tuple(f"{c}_sorted" for c in COLOURS), 1.0, _sorted_flags),
-        StateField("current_cube", tuple(f"current_is_{c}" for c in COLOURS), 1.0, _current),
-        position_field("jaw_to_current_cube", "jaw_to_current_cube", _jaw_to_current),
-        position_field("current_cube_to_pad", "current_cube_to_pad", _current_to_pad),
+        StateField("progress", PROGRESS_NAMES, 2 * constants.POSITION_BOUND_M, _progress),
     )
     """Which cubes are sorted, the cube worked on now (the first unsorted one in
     :data:`COLOURS` order; the last once all are), the vector from the jaws to it and from
