@@ -110,7 +110,7 @@ def check_positive(name: str, value: Any, *, fix: str = "") -> float:
 
 
 def check_dataclass_fields(
-    config: Any, picks: Callable[[str], bool], check: Callable[[str, Any], Any]
+    config: Any, picks: Callable[[str], bool], check: Callable[..., Any]
 ) -> None:
     """Run ``check(name, value, fix=...)`` on each field of the dataclass ``config`` whose
     name ``picks`` chooses (``lambda name: name.endswith("_steps")``), in declaration

@@ -210,10 +210,11 @@ def _trained_columns(
         return None
     missing = [name for name in trained_names if name not in names]
     if missing or model_file(settings) != MODEL_FILE:
+        lacking = f"; without {missing[:4]}" if missing else ""
         raise ValueError(
             f"the policy in {str(folder)!r} was trained on another observation layout "
-            f"({len(trained_names)} values) than {trained} has now ({len(names)}; without "
-            f"{missing[:4]}); retrain it with this version of gym-soarm."
+            f"({len(trained_names)} values) than {trained} has now ({len(names)}{lacking}); "
+            "retrain it with this version of gym-soarm."
         )
     return [names.index(name) for name in trained_names]
 
